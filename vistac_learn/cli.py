@@ -1,0 +1,9 @@
+"""Sub-commands of vistac_learn, registered into the `vistac` command."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the learning sub-commands (models, train, evaluate, ...) to the parser."""

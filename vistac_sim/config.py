@@ -1,0 +1,154 @@
+"""The generation config: a tree of small dataclasses, every knob with its default.
+
+The whole tree is written into `manifest.json` (``to_dict``) so that a dataset states exactly how
+it was made, and `--resume` can refuse to continue a run made with other settings.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+PROCEDURAL_FAMILIES = (
+    "cylinder",
+    "box",
+    "prism",
+    "rounded_rect",
+    "L",
+    "U",
+    "star",
+    "crescent",
+)
+CONCAVE_FAMILIES = ("L", "U", "star", "crescent")
+
+
+@dataclass
+class HandCfg:
+    """Geometry and drive of the two fingertips (sizes in metres, forces in newtons).
+
+    The RH8D is a human-scale hand; the distal phalanx with its FTS-3 fingertip is modelled as a
+    capsule of 9.5 mm radius (19 mm wide, the width of an adult distal phalanx) whose rounded end
+    carries the sensor pad, behind it a shaft standing in for the middle phalanx. These sizes are
+    approximations of a human-scale fingertip, not measurements of Seed Robotics CAD.
+    """
+
+    tip_radius: float = 0.0095
+    tip_half_length: float = 0.008  # half length of the tip capsule's straight part
+    shaft_radius: float = 0.0085
+    shaft_length: float = 0.045  # drawn and collided middle phalanx behind the tip
+    height: float = 0.012  # fingertip axis above the table top
+    mass: float = 0.03  # kg, the moving fingertip body
+    press_force: float = 2.0  # N, drive force along the approach direction
+    standoff: float = 0.003  # m, gap between tip and target before the press
+    travel: float = 0.012  # m, furthest the tip may move before "no contact"
+
+
+@dataclass
+class ObjectsCfg:
+    """Which objects lie on the table."""
+
+    families: tuple[str, ...] = PROCEDURAL_FAMILIES
+    paths: tuple[str, ...] = ()  # user meshes (files or folders); replaces families when given
+    n_objects: int = 32  # size of the procedural object library drawn from the seed
+    footprint: tuple[float, float] = (0.035, 0.075)  # m, longest side of the top-view outline
+    height: tuple[float, float] = (0.03, 0.05)  # m, extrusion height of procedural objects
+    min_wall: float = 0.001  # m, thinnest wall a procedural outline may have
+    strict: bool = False  # a bad mesh in a folder aborts instead of being skipped
+
+
+@dataclass
+class GraspCfg:
+    """How contact targets and approach directions are drawn."""
+
+    approach_spread_deg: float = 20.0  # max angle of the approach off the inward surface normal
+    min_opposition_deg: float = 90.0  # min angle between index and thumb approach directions
+    max_redraws: int = 60  # per configuration, before the run fails loudly
+
+
+@dataclass
+class PhysicsCfg:
+    """MuJoCo settings of the press."""
+
+    friction: float = 0.6  # sliding friction coefficient; 0 makes contacts frictionless
+    timestep: float = 0.001
+    settle_steps: int = 300
+    solref: tuple[float, float] = (0.004, 1.0)
+    solimp: tuple[float, float, float] = (0.99, 0.999, 0.0005)
+    max_penetration: float = 0.001  # m; deeper contacts are rejected
+    max_speed: float = 1e-3  # m/s; a tip still moving after settling is rejected
+
+
+@dataclass
+class RenderCfg:
+    """The orthographic top view."""
+
+    image_size: int = 227
+    view_extent: float = 0.16  # m of table across the image
+    table_rgb: tuple[float, float, float] = (0.81, 0.81, 0.81)
+    index_rgb: tuple[float, float, float] = (0.0, 0.85, 0.0)
+    thumb_rgb: tuple[float, float, float] = (0.9, 0.0, 0.0)
+
+
+@dataclass
+class EffectsCfg:
+    """Measurement effects. Each enabled effect becomes one callable in the pipeline."""
+
+    noise: float = 0.0  # relative std of the per-press force noise (0 disables the effect)
+
+
+@dataclass
+class SplitCfg:
+    """Assignment of whole configurations (or whole objects) to train / val / test."""
+
+    by: Literal["config", "object"] = "config"
+    fractions: tuple[float, float, float] = (0.7, 0.15, 0.15)
+
+
+@dataclass
+class GenerateCfg:
+    """Everything `vistac generate` needs. Sub-trees default to the values above."""
+
+    n: int = 200
+    seed: int = 0
+    repeats: int = 6
+    chunk_size: int = 50  # configurations per shard (unit of work, resume and determinism)
+    hand: HandCfg = field(default_factory=HandCfg)
+    objects: ObjectsCfg = field(default_factory=ObjectsCfg)
+    grasp: GraspCfg = field(default_factory=GraspCfg)
+    physics: PhysicsCfg = field(default_factory=PhysicsCfg)
+    render: RenderCfg = field(default_factory=RenderCfg)
+    effects: EffectsCfg = field(default_factory=EffectsCfg)
+    split: SplitCfg = field(default_factory=SplitCfg)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-able dict of the whole tree (tuples become lists)."""
+        return _jsonable(dataclasses.asdict(self))
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    return value
+
+
+def from_dict(cls: type, data: dict[str, Any]):
+    """Build dataclass `cls` from a (possibly partial) nested dict; unknown keys are errors."""
+    from vistac_sim.errors import UserError
+
+    names = {f.name: f for f in dataclasses.fields(cls)}
+    kwargs = {}
+    for key, value in data.items():
+        if key not in names:
+            raise UserError(f"unknown config key {key!r} for {cls.__name__}")
+        f = names[key]
+        default = getattr(cls(), key) if f.default is dataclasses.MISSING else f.default
+        if dataclasses.is_dataclass(default):
+            kwargs[key] = from_dict(type(default), value)
+        elif isinstance(default, tuple):
+            kwargs[key] = tuple(value)
+        else:
+            kwargs[key] = value
+    return cls(**kwargs)
