@@ -7,3 +7,6 @@ import argparse
 
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the learning sub-commands (models, train, evaluate, ...) to the parser."""
+    from vistac_learn import models
+
+    models.add_command(sub)
