@@ -1,0 +1,95 @@
+"""Small vectorised geometry helpers: rotations in the plane, closest points on meshes."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def rot2(yaw: float) -> np.ndarray:
+    """2x2 rotation by `yaw` radians (counter-clockwise seen from above)."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s], [s, c]])
+
+
+def yaw_quat(yaw: float) -> np.ndarray:
+    """MuJoCo quaternion (w, x, y, z) of a rotation by `yaw` about world z."""
+    return np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)])
+
+
+def unit(v: np.ndarray, axis: int = -1) -> np.ndarray:
+    """`v` scaled to unit length along `axis` (zero vectors stay zero)."""
+    n = np.linalg.norm(v, axis=axis, keepdims=True)
+    return np.divide(v, n, out=np.zeros_like(v, dtype=float), where=n > 0)
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Angle in degrees between vectors along the last axis (robust near 0 and 180)."""
+    a, b = unit(np.asarray(a, float)), unit(np.asarray(b, float))
+    cross = np.linalg.norm(np.cross(a, b), axis=-1) if a.shape[-1] == 3 else np.abs(
+        a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
+    return np.degrees(np.arctan2(cross, (a * b).sum(-1)))
+
+
+class TriangleIndex:
+    """Closest-point queries on a triangle mesh: AABB pre-filter, then exact point-triangle."""
+
+    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
+        self.tri = np.asarray(vertices, float)[np.asarray(faces)]  # (F, 3, 3)
+        self.lo = self.tri.min(axis=1)
+        self.hi = self.tri.max(axis=1)
+
+    def closest(self, point: np.ndarray, radius: float = 0.005) -> tuple[np.ndarray, int]:
+        """Closest point on the mesh to `point` and its face index.
+
+        Only faces whose box lies within `radius` are tested; if none does, all faces are.
+        """
+        p = np.asarray(point, float)
+        near = np.all((self.lo - radius <= p) & (p <= self.hi + radius), axis=1)
+        idx = np.flatnonzero(near) if near.any() else np.arange(len(self.tri))
+        q = closest_point_on_triangles(p, self.tri[idx])
+        k = int(np.argmin(((q - p) ** 2).sum(1)))
+        return q[k], int(idx[k])
+
+
+def closest_point_on_triangles(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """Closest point to `p` on each triangle of `tri` (F, 3, 3) (Ericson, Real-Time Collision
+    Detection, 5.1.5), vectorised over triangles."""
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = (ab * ap).sum(1), (ac * ap).sum(1)
+    bp = p - b
+    d3, d4 = (ab * bp).sum(1), (ac * bp).sum(1)
+    cp = p - c
+    d5, d6 = (ab * cp).sum(1), (ac * cp).sum(1)
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = 1.0 / (va + vb + vc)
+        v = vb * denom
+        w = vc * denom
+        out = a + ab * v[:, None] + ac * w[:, None]  # inside the face
+        t_ab = d1 / (d1 - d3)
+        t_ac = d2 / (d2 - d6)
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+    # Edge and vertex regions, assigned from the least to the most specific.
+    m = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+    out[m] = a[m] + ab[m] * t_ab[m, None]
+    m = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+    out[m] = a[m] + ac[m] * t_ac[m, None]
+    m = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
+    out[m] = b[m] + (c[m] - b[m]) * t_bc[m, None]
+    m = (d1 <= 0) & (d2 <= 0)
+    out[m] = a[m]
+    m = (d3 >= 0) & (d4 <= d3)
+    out[m] = b[m]
+    m = (d6 >= 0) & (d5 <= d6)
+    out[m] = c[m]
+    return out
+
+
+def closest_on_segment(p: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
+    """Closest point to `p` on the segment s0-s1."""
+    d = s1 - s0
+    t = np.clip(np.dot(p - s0, d) / max(np.dot(d, d), 1e-300), 0.0, 1.0)
+    return s0 + t * d

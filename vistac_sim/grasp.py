@@ -1,0 +1,114 @@
+"""Grasp sampling: object pose, contact targets on the top-view outline, approach directions.
+
+Targets lie on the object's outline at fingertip height. Each finger approaches within
+`approach_spread_deg` of the inward surface normal; the thumb's approach opposes the index's by at
+least `min_opposition_deg`; the whole finger (tip and shaft) must fit beside the object in its
+start pose, and the two fingers must not overlap. What cannot be met is a `RejectedSample`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from shapely.geometry import LineString, Polygon
+from shapely.prepared import prep
+
+from vistac_sim.config import GenerateCfg
+from vistac_sim.errors import RejectedSample
+from vistac_sim.geometry import rot2, unit
+from vistac_sim.outlines import boundary_arrays
+
+
+@dataclass(frozen=True)
+class Grasp:
+    """One grasp configuration in world coordinates (metres, radians), fingers (index, thumb)."""
+
+    object_xy: np.ndarray  # (2,) object origin on the table
+    object_yaw: float
+    target: np.ndarray  # (2, 2) contact targets, world xy
+    normal: np.ndarray  # (2, 2) outward outline normals at the targets, world xy
+    approach: np.ndarray  # (2, 2) unit approach directions, world xy
+
+    def start(self, tip_radius: float, standoff: float) -> np.ndarray:
+        """(2, 2) world xy of each tip's front-cap centre before the press.
+
+        The cap would touch the target after moving `standoff` along the approach.
+        """
+        return self.target + self.normal * tip_radius - self.approach * standoff
+
+    def moved(self, **changes) -> Grasp:
+        return replace(self, **changes)
+
+
+class OutlineSampler:
+    """Draws grasps on one object's outline (built once per object, used for every grasp)."""
+
+    def __init__(self, section: Polygon, cfg: GenerateCfg):
+        self.section = section
+        self.cfg = cfg
+        self.p0, self.p1, self.normals, self.cum = boundary_arrays(section)
+        self.prepared = prep(section)
+
+    def _points(self, rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray]:
+        s = rng.uniform(0, self.cum[-1], k)
+        seg = np.searchsorted(self.cum, s, side="right").clip(max=len(self.cum) - 1)
+        start = np.where(seg > 0, self.cum[seg - 1], 0.0)
+        t = ((s - start) / (self.cum[seg] - start))[:, None]
+        return self.p0[seg] * (1 - t) + self.p1[seg] * t, self.normals[seg]
+
+    def _approach(self, rng: np.random.Generator, normals: np.ndarray) -> np.ndarray:
+        spread = np.radians(self.cfg.grasp.approach_spread_deg)
+        ang = rng.uniform(-spread, spread, len(normals))
+        c, s = np.cos(ang), np.sin(ang)
+        inward = -normals
+        return np.c_[c * inward[:, 0] - s * inward[:, 1], s * inward[:, 0] + c * inward[:, 1]]
+
+    def finger_footprint(self, start: np.ndarray, approach: np.ndarray) -> Polygon:
+        """Top-view footprint of a whole finger (tip + shaft) with its front cap at `start`."""
+        h = self.cfg.hand
+        back = start - approach * (2 * h.tip_half_length + h.shaft_length + h.shaft_radius)
+        return LineString([start, back]).buffer(h.tip_radius, quad_segs=6)
+
+    def sample(self, rng: np.random.Generator, n_thumb_candidates: int = 24) -> Grasp:
+        """Draw one grasp in world coordinates.
+
+        Raises:
+            RejectedSample: "unreachable" (a finger would start inside the object),
+                "no_opposing_thumb" (no thumb target opposes the index), "fingers_overlap".
+        """
+        h = self.cfg.hand
+        yaw = float(rng.uniform(-np.pi, np.pi))
+        xy = rng.uniform(-0.01, 0.01, 2)
+        p_i, n_i = self._points(rng, 1)
+        a_i = self._approach(rng, n_i)
+        s_i = p_i + n_i * h.tip_radius - a_i * h.standoff
+        foot_i = self.finger_footprint(s_i[0], a_i[0])
+        if self.prepared.intersects(foot_i):
+            raise RejectedSample("unreachable", "index finger would start inside the object")
+        p_t, n_t = self._points(rng, n_thumb_candidates)
+        a_t = self._approach(rng, n_t)
+        cos_min = np.cos(np.radians(self.cfg.grasp.min_opposition_deg))
+        ok = (a_t @ a_i[0]) <= cos_min
+        if not ok.any():
+            raise RejectedSample("no_opposing_thumb", "no thumb target opposes the index finger")
+        reason = RejectedSample("unreachable", "thumb would start inside the object")
+        for k in np.flatnonzero(ok):
+            s_t = p_t[k] + n_t[k] * h.tip_radius - a_t[k] * h.standoff
+            foot_t = self.finger_footprint(s_t, a_t[k])
+            if self.prepared.intersects(foot_t):
+                continue
+            if foot_t.intersects(foot_i):
+                reason = RejectedSample("fingers_overlap", "thumb and index would overlap")
+                continue
+            local = Grasp(xy, yaw, np.r_[p_i, p_t[k:k + 1]], np.r_[n_i, n_t[k:k + 1]],
+                          np.r_[a_i, a_t[k:k + 1]])
+            return to_world(local)
+        raise reason
+
+
+def to_world(g: Grasp) -> Grasp:
+    """Turn a grasp drawn in the object frame into world coordinates (rotate by yaw, shift)."""
+    r = rot2(g.object_yaw)
+    return g.moved(target=g.target @ r.T + g.object_xy, normal=unit(g.normal @ r.T),
+                   approach=unit(g.approach @ r.T))

@@ -1,0 +1,223 @@
+"""One grasp configuration end to end: grasp, press(es), checks, labels, render.
+
+`ObjectScene` bundles everything built once per object inside a worker (compiled model, press,
+renderer, outline sampler, normal look-up). `make_configuration` turns a configuration id into
+its table rows and PNG, drawing all randomness from generators derived from (seed, config_id),
+so the result does not depend on which worker runs it or in which order.
+"""
+
+from __future__ import annotations
+
+from collections import Counter, OrderedDict
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from vistac_sim.config import GenerateCfg
+from vistac_sim.effects import Pipeline
+from vistac_sim.errors import RejectedSample
+from vistac_sim.geometry import TriangleIndex, angle_deg, closest_on_segment, rot2, unit
+from vistac_sim.grasp import Grasp, OutlineSampler
+from vistac_sim.objects import ObjectSpec, SceneObject, build_object
+from vistac_sim.press import Press, PressResult
+from vistac_sim.render import TopView, encode_png, finger_boxes, px_per_m
+from vistac_sim.scene import FINGERS, compile_scene
+
+STREAMS = ("grasp", "scene_effects", "force_effects", "image_effects")
+
+
+class ObjectScene:
+    """Everything a worker builds once per object."""
+
+    def __init__(self, obj: SceneObject, cfg: GenerateCfg, render: bool = True):
+        self.obj, self.cfg = obj, cfg
+        self.model, self.ids = compile_scene(obj, cfg)
+        self.press = Press(self.model, self.ids, cfg)
+        self.sampler = OutlineSampler(obj.section, cfg)
+        self.triangles = TriangleIndex(obj.mesh.vertices, obj.mesh.faces)
+        self.view = TopView(self.model, self.ids, cfg.render) if render else None
+
+    def close(self) -> None:
+        if self.view is not None:
+            self.view.close()
+
+    def surface_normals(self, grasp: Grasp, res: PressResult) -> np.ndarray:
+        """(2, 3) outward normal of the full-resolution mesh at each pad's contact, world frame.
+
+        Per contact: the closest mesh point q to MuJoCo's contact point and the closest point s on
+        the pad capsule's axis to q; the normal is (s - q)/|s - q|. On a face this is the face
+        normal; on an edge or corner it is the member of the normal cone that points at the pad,
+        which is the direction a frictionless contact pushes along. Several contacts of one pad
+        are averaged with their normal-force weights.
+        """
+        d, ids, h = self.press.data, self.ids, self.cfg.hand
+        r2 = rot2(grasp.object_yaw)
+        origin = np.r_[grasp.object_xy, 0.0]
+        out = np.zeros((2, 3))
+        g1, g2 = d.contact.geom1[: d.ncon], d.contact.geom2[: d.ncon]
+        f6 = np.zeros(6)
+        for k, f in enumerate(FINGERS):
+            axis = np.r_[grasp.approach[k], 0.0]
+            tip = res.tip[k]
+            for c in np.flatnonzero((g1 == ids.pad[f]) | (g2 == ids.pad[f])):
+                p = d.contact.pos[c] - origin
+                p_obj = np.r_[r2.T @ p[:2], p[2]]
+                q_obj, _ = self.triangles.closest(p_obj)
+                q = np.r_[r2 @ q_obj[:2], q_obj[2]] + origin
+                s = closest_on_segment(q, tip - axis * 2 * h.tip_half_length, tip)
+                mujoco.mj_contactForce(self.model, d, int(c), f6)
+                out[k] += max(f6[0], 1e-12) * unit(s - q)
+        return unit(out)
+
+
+class SceneCache:
+    """A small LRU of `ObjectScene`s keyed by object index (renderers are costly to keep)."""
+
+    def __init__(self, specs: list[ObjectSpec], cfg: GenerateCfg, size: int = 6, cache_dir=None):
+        self.specs, self.cfg, self.size, self.cache_dir = specs, cfg, size, cache_dir
+        self._scenes: OrderedDict[int, ObjectScene] = OrderedDict()
+
+    def get(self, index: int) -> ObjectScene:
+        if index in self._scenes:
+            self._scenes.move_to_end(index)
+            return self._scenes[index]
+        obj = build_object(self.specs[index], self.cfg.hand.height, self.cfg.objects.min_wall,
+                           self.cache_dir)
+        scene = ObjectScene(obj, self.cfg)
+        self._scenes[index] = scene
+        if len(self._scenes) > self.size:
+            self._scenes.popitem(last=False)[1].close()
+        return scene
+
+    def close(self) -> None:
+        for scene in self._scenes.values():
+            scene.close()
+        self._scenes.clear()
+
+
+@dataclass
+class Configuration:
+    """What one configuration adds to the dataset."""
+
+    row: dict
+    presses: list[dict]
+    png: bytes
+
+
+def config_streams(seed: int, config_id: int) -> dict[str, np.random.Generator]:
+    """Independent generators of one configuration, derived from (seed, config_id) only."""
+    children = np.random.SeedSequence([seed, config_id]).spawn(len(STREAMS))
+    return {name: np.random.default_rng(c) for name, c in zip(STREAMS, children, strict=True)}
+
+
+def object_index(seed: int, config_id: int, n_objects: int) -> int:
+    """Which object of the library configuration `config_id` uses."""
+    return int(np.random.default_rng([seed, config_id, 7]).integers(n_objects))
+
+
+def check_physics(force: np.ndarray, normal: np.ndarray, friction: float, tol_deg: float) -> None:
+    """Physical checks of a noise-free press (sensor frame): pushing force inside the cone.
+
+    Raises:
+        RejectedSample: "pulling_force" (F_z >= 0) or "outside_friction_cone".
+    """
+    if not np.all(force[:, 2] < 0):
+        raise RejectedSample("pulling_force", "a pad is not pushed (F_z >= 0)")
+    limit = np.degrees(np.arctan(friction)) + tol_deg
+    ang = angle_deg(force, normal)
+    if np.any(ang > limit):
+        raise RejectedSample("outside_friction_cone",
+                             f"force {ang.max():.1f} deg off the surface normal (limit {limit:.1f})")
+
+
+def unit_labels(forces: np.ndarray) -> np.ndarray:
+    """(..., 2) unit (r_y, r_z) of forces (..., 3); a zero (y, z) force gives (0, -1)."""
+    yz = forces[..., 1:]
+    n = np.linalg.norm(yz, axis=-1, keepdims=True)
+    safe = np.where(n > 0, n, 1.0)
+    return np.where(n > 0, yz / safe, np.array([0.0, -1.0]))
+
+
+def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: GenerateCfg,
+                       pipeline: Pipeline) -> Configuration:
+    """Draw, press, check, label and render configuration `config_id`.
+
+    Raises:
+        RuntimeError: when `max_redraws` draws in a row were rejected (names the object).
+    """
+    rng = config_streams(seed, config_id)
+    idx = object_index(seed, config_id, len(scenes.specs))
+    scene = scenes.get(idx)
+    redraws: Counter = Counter()
+    for _ in range(cfg.grasp.max_redraws):
+        try:
+            grasp = scene.sampler.sample(rng["grasp"])
+            res = scene.press.run(grasp)
+            normal_w = scene.surface_normals(grasp, res)
+            normal = np.einsum("kji,kj->ki", res.rotation, normal_w)
+            check_physics(res.force_sensor, normal, cfg.physics.friction,
+                          cfg.physics.cone_tolerance_deg)
+            break
+        except RejectedSample as exc:
+            redraws[exc.reason] += 1
+    else:
+        raise RuntimeError(f"configuration {config_id}: object {scene.obj.object_id} gave no "
+                           f"valid grasp in {cfg.grasp.max_redraws} draws ({dict(redraws)})")
+    boxes = finger_boxes(scene.model, scene.press.data, scene.ids, cfg.render)
+    png = encode_png(scene.view.render(scene.press.data))
+    clean = res.force_sensor
+    if pipeline.changes_physics:
+        solved = []
+        for _ in range(cfg.repeats):
+            moved = pipeline.apply_scene(grasp, rng["scene_effects"])
+            solved.append(scene.press.run(moved).force_sensor)
+        forces = np.stack(solved)
+    else:
+        forces = np.broadcast_to(clean, (cfg.repeats, 2, 3)).copy()
+    forces = pipeline.apply_force(forces, rng["force_effects"])
+    labels = unit_labels(forces)
+    row = _config_row(config_id, scene.obj, grasp, res, clean, normal, boxes, cfg)
+    row["redraws"] = int(sum(redraws.values()))
+    row["redraw_reasons"] = ",".join(f"{k}:{v}" for k, v in sorted(redraws.items()))
+    return Configuration(
+        row=row,
+        presses=[_press_row(config_id, k, forces[k], labels[k]) for k in range(cfg.repeats)],
+        png=png,
+    )
+
+
+def _config_row(config_id, obj: SceneObject, grasp: Grasp, res: PressResult, clean, normal,
+                boxes, cfg: GenerateCfg) -> dict:
+    row = {
+        "config_id": config_id,
+        "object_id": obj.object_id,
+        "object_family": obj.spec.family,
+        "image": f"{config_id:06d}.png",
+        "object_x": float(grasp.object_xy[0]),
+        "object_y": float(grasp.object_xy[1]),
+        "object_yaw": float(grasp.object_yaw),
+        "camera_x": 0.0,
+        "camera_y": 0.0,
+        "px_per_m": px_per_m(cfg.render),
+    }
+    for k, f in enumerate(FINGERS):
+        row |= {
+            f"target_{f}_x": grasp.target[k, 0], f"target_{f}_y": grasp.target[k, 1],
+            f"approach_{f}_x": grasp.approach[k, 0], f"approach_{f}_y": grasp.approach[k, 1],
+            f"tip_{f}_x": res.tip[k, 0], f"tip_{f}_y": res.tip[k, 1],
+            f"penetration_{f}": res.penetration[k],
+        }
+        row |= {f"bbox_{f}_{c}": boxes[k, j] for j, c in enumerate("xywh")}
+        row |= {f"force_clean_{f}_{c}": clean[k, j] for j, c in enumerate("xyz")}
+        row |= {f"normal_{f}_{c}": normal[k, j] for j, c in enumerate("xyz")}
+    return {k: (float(v) if isinstance(v, np.floating) else v) for k, v in row.items()}
+
+
+def _press_row(config_id: int, repeat: int, force: np.ndarray, label: np.ndarray) -> dict:
+    row = {"config_id": config_id, "repeat": repeat}
+    for k, f in enumerate(FINGERS):
+        row |= {f"force_{f}_{c}": float(force[k, j]) for j, c in enumerate("xyz")}
+    for k, f in enumerate(FINGERS):
+        row |= {f"r_y_{f}": float(label[k, 0]), f"r_z_{f}": float(label[k, 1])}
+    return row
