@@ -59,7 +59,8 @@ def procedural_library(cfg: ObjectsCfg, seed: int) -> list[ObjectSpec]:
     """The procedural object library of a run: `n_objects` specs cycling through the families."""
     for fam in cfg.families:
         if fam not in outlines.families():
-            raise UserError(f"unknown object family {fam!r}; known: {', '.join(outlines.families())}")
+            known = ", ".join(outlines.families())
+            raise UserError(f"unknown object family {fam!r}; known: {known}")
     root = np.random.SeedSequence([seed, 0xB0B])
     specs = []
     for k, child in enumerate(root.spawn(cfg.n_objects)):
@@ -170,9 +171,10 @@ def mesh_section(mesh: trimesh.Trimesh, z: float, name: str = "mesh") -> Polygon
     """Largest polygon of the mesh's cross-section at height z (object frame)."""
     sec = mesh.section(plane_origin=[0, 0, z], plane_normal=[0, 0, 1])
     if sec is None:
-        raise UserError(f"{name}: the object is lower than the fingertip height ({z * 1000:.1f} mm)")
+        raise UserError(f"{name}: the object is lower than the fingertip ({z * 1000:.1f} mm)")
     planar, to_3d = sec.to_2D()
-    polys = [shapely.transform(p, lambda xy, m=to_3d: _apply_2d(m, xy)) for p in planar.polygons_full]
+    polys = [shapely.transform(p, lambda xy, m=to_3d: _apply_2d(m, xy))
+             for p in planar.polygons_full]
     if not polys:
         raise UserError(f"{name}: the cross-section at fingertip height is not a closed outline")
     return max(polys, key=lambda p: p.area)
@@ -228,8 +230,9 @@ def mesh_library(cfg: ObjectsCfg, seed: int, finger_height: float,
     specs, skipped = [], []
     for k, f in enumerate(files):
         footprint = float(rng.uniform(*cfg.footprint))
-        spec = ObjectSpec(object_id=f"{f.stem}_{k:03d}", family="mesh", seed=int(rng.integers(2**31)),
-                          footprint=footprint, height=0.0, path=str(f.resolve()))
+        spec = ObjectSpec(object_id=f"{f.stem}_{k:03d}", family="mesh",
+                          seed=int(rng.integers(2**31)), footprint=footprint, height=0.0,
+                          path=str(f.resolve()))
         try:
             build_object(spec, finger_height, cache_dir=cache_dir)
         except UserError as exc:

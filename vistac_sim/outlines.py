@@ -40,8 +40,8 @@ def outline(name: str, rng: np.random.Generator, footprint: float, min_wall: flo
     poly = poly.simplify(1e-6)
     poly = affinity.translate(poly, -poly.centroid.x, -poly.centroid.y)
     x0, y0, x1, y1 = poly.bounds
-    return affinity.scale(poly, footprint / max(x1 - x0, y1 - y0), footprint / max(x1 - x0, y1 - y0),
-                          origin=(0, 0))
+    s = footprint / max(x1 - x0, y1 - y0)
+    return affinity.scale(poly, s, s, origin=(0, 0))
 
 
 @family("cylinder")
@@ -153,7 +153,7 @@ def _is_convex(poly: Polygon, tol: float) -> bool:
 
 
 def boundary_arrays(poly: Polygon) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Segments of the exterior ring for fast sampling: starts, ends, outward normals, cum. length."""
+    """Exterior-ring segments: starts, ends, outward normals, cumulative length."""
     ring = poly.exterior
     if not ring.is_ccw:
         ring = shapely.LinearRing(list(ring.coords)[::-1])

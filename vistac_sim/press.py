@@ -66,7 +66,7 @@ class Press:
             RejectedSample: with reason "start_penetrates", "mujoco_warning", "non_finite",
                 "no_contact", "shaft_contact", "not_settled" or "penetration".
         """
-        m, d, ids, phys = self.model, self.data, self.ids, self.cfg.physics
+        m, d, phys = self.model, self.data, self.cfg.physics
         self.pose(grasp)
         mujoco.mj_forward(m, d)
         if d.ncon and (d.contact.dist[: d.ncon] < 0).any():
@@ -87,7 +87,7 @@ class Press:
         pen = np.zeros(2)
         for k, f in enumerate(FINGERS):
             if np.any((g1 == ids.shaft[f]) | (g2 == ids.shaft[f])):
-                raise RejectedSample("shaft_contact", f"{f} finger touches the object behind the pad")
+                raise RejectedSample("shaft_contact", f"{f} finger touches behind the pad")
             pad = np.flatnonzero((g1 == ids.pad[f]) | (g2 == ids.pad[f]))
             if pad.size == 0 or d.qpos[ids.qpos[f]] >= self._limit - 1e-6:
                 raise RejectedSample("no_contact", f"{f} pad reached no surface")

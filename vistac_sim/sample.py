@@ -128,7 +128,7 @@ def check_physics(force: np.ndarray, normal: np.ndarray, friction: float, tol_de
     ang = angle_deg(force, normal)
     if np.any(ang > limit):
         raise RejectedSample("outside_friction_cone",
-                             f"force {ang.max():.1f} deg off the surface normal (limit {limit:.1f})")
+                             f"force {ang.max():.1f} deg off the normal (limit {limit:.1f})")
 
 
 def unit_labels(forces: np.ndarray) -> np.ndarray:
