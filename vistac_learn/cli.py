@@ -10,3 +10,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     from vistac_learn import models
 
     models.add_command(sub)
+    from vistac_learn import evaluate, train
+
+    train.add_command(sub)
+    evaluate.add_command(sub)

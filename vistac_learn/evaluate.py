@@ -1,0 +1,255 @@
+"""`vistac evaluate`: score a trained run (or the geometric baseline) on a split.
+
+For each finger: every metric of thesis.md section 6 plus angular metrics
+(`vistac_learn.metrics.cone_metrics`), printed as a table in the study's layout (thesis.md
+section 9) and saved, with the per-prediction values and the figures, into an output folder:
+
+- ``metrics.json``: settings, counts, inference speed, the scalar metrics per finger, the table.
+- ``predictions.parquet``: one row per prediction (config_id, rotation, prediction and per-sample
+  metrics of each finger).
+- ``cones_<finger>.png``, ``error_hist_<finger>.png``, ``rotation_spread_<finger>.png``.
+
+Every (configuration, rotation) pair is one prediction, as in the study (34 x 20 = 680 test
+pairs). With ``--tta`` the raw predictions of a configuration's rotations are averaged first
+(test-time augmentation), one prediction per configuration.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+
+from vistac_learn import plots
+from vistac_learn.baseline import GeometricCfg, baseline_predictions
+from vistac_learn.data import RotationCfg, fingers_of, open_dataset
+from vistac_learn.scoring import average_over_rotations, format_table, predict, score
+from vistac_learn.train import TrainCfg, build_model, build_pairs, resolve_device
+from vistac_sim.errors import UserError
+
+
+def load_run(run: str | Path) -> tuple[TrainCfg, dict]:
+    """The `TrainCfg` and the whole ``config.json`` of a run folder."""
+    path = Path(run) / "config.json"
+    if not path.exists():
+        raise UserError(f"{path}: missing (not a vistac run folder)")
+    meta = json.loads(path.read_text())
+    known = {f.name for f in dataclasses.fields(TrainCfg)}
+    return TrainCfg(**{k: v for k, v in meta["train"].items() if k in known}), meta
+
+
+def load_model(
+    run: str | Path, cfg: TrainCfg, checkpoint: str, device
+) -> tuple[torch.nn.Module, int]:
+    """The run's model with weights from ``checkpoints/<checkpoint>.pt``; (model, epoch)."""
+    path = Path(run) / "checkpoints" / f"{checkpoint}.pt"
+    if not path.exists():
+        raise UserError(f"{path}: missing (has the run finished an epoch?)")
+    ck = torch.load(path, map_location=device, weights_only=False)
+    model = build_model(cfg)
+    model.load_state_dict(ck["model"])
+    return model.to(device), int(ck["epoch"])
+
+
+def _write_outputs(
+    out: Path,
+    label: str,
+    pred: np.ndarray,
+    tables,
+    rows: np.ndarray,
+    item_row: np.ndarray,
+    item_rot: np.ndarray,
+    fingers: tuple[str, ...],
+    info: dict,
+    make_plots: bool,
+) -> dict:
+    """Score, print and save (JSON, per-prediction parquet, PNGs); return the JSON dict."""
+    out.mkdir(parents=True, exist_ok=True)
+    res = score(pred, tables, rows, item_row, fingers, full=True)
+    cids = tables.configs["config_id"].to_numpy()
+    frame = {"config_id": cids[item_row], "rotation": item_rot}
+    for i, f in enumerate(fingers):
+        frame[f"pred_{f}_y"], frame[f"pred_{f}_z"] = pred[:, 2 * i], pred[:, 2 * i + 1]
+        for k, v in res[f]["per_sample"].items():
+            frame[f"{f}_{k}"] = v
+    pd.DataFrame(frame).to_parquet(out / "predictions.parquet", index=False)
+    summary = {f: {k: v for k, v in r.items() if np.isscalar(v)} for f, r in res.items()}
+    table = format_table([(f"{label} ({f})", summary[f]) for f in fingers])
+    result = {**info, "label": label, "fingers": list(fingers), "n_configs": int(len(rows)),
+              "n_predictions": int(len(pred)), "metrics": summary, "table": table}
+    (out / "metrics.json").write_text(json.dumps(result, indent=2))
+    if make_plots:
+        order = np.argsort(rows)
+        pos = order[np.searchsorted(rows[order], item_row)]
+        titles = [f"config {c}" for c in cids[rows]]
+        for i, f in enumerate(fingers):
+            ps, cones = res[f]["per_sample"], res[f]["cones"]
+            label_sets = [tables.cones[f][r] for r in rows]
+            plots.plot_cones(pred[:, 2 * i:2 * i + 2], pos, ps["in_cone"], label_sets, cones,
+                             titles, out / f"cones_{f}.png")
+            plots.plot_error_hist(ps["error_pct"], out / f"error_hist_{f}.png", f"{label} {f}:")
+            plots.plot_rotation_spread(ps["angle_deg"], pos, cones,
+                                       out / f"rotation_spread_{f}.png", f"{label} {f}:")
+    print(table)
+    return result
+
+
+def evaluate_run(
+    run: str | Path,
+    data: str | Path | None = None,
+    split: str = "test",
+    tta: bool = False,
+    checkpoint: str = "best",
+    out: str | Path | None = None,
+    make_plots: bool = True,
+    device: str | None = None,
+    progress: bool = False,
+) -> dict:
+    """Score a run's model on a split.
+
+    Args:
+        run: Run folder.
+        data: Dataset to score on (default: the run's training dataset).
+        split: Split to score.
+        tta: Average each configuration's rotations before scoring.
+        checkpoint: ``best`` (validation-selected) or ``last``.
+        out: Output folder (default ``<run>/eval/<split>[-tta]``).
+        make_plots: Write the PNG figures.
+        device: Override the run's device.
+        progress: Show progress bars.
+
+    Returns:
+        The content of ``metrics.json``.
+    """
+    cfg, meta = load_run(run)
+    if data is not None:
+        cfg = dataclasses.replace(cfg, data=str(data))
+    dev = resolve_device(device or cfg.device)
+    tables = open_dataset(cfg.data)
+    model, epoch = load_model(run, cfg, checkpoint, dev)
+    input_size = int(getattr(model, "input_size", cfg.size or 227))
+    ds = build_pairs(cfg, tables, split, input_size, progress, target="mean")
+    t0 = time.perf_counter()
+    pred = predict(model, ds, dev, cfg.eval_batch_size)
+    elapsed = time.perf_counter() - t0
+    item_row, item_rot = ds.item_row, ds.item_rot
+    if tta:
+        pred, item_row = average_over_rotations(pred, item_row)
+        item_rot = np.full(len(item_row), -1)
+    info = {"kind": "model", "run": str(run), "model": cfg.model, "variant": cfg.variant,
+            "data": str(cfg.data), "split": split, "tta": tta, "checkpoint": checkpoint,
+            "epoch": epoch, "device": str(dev), "images_per_s": len(ds) / max(elapsed, 1e-9),
+            "n_rotations": ds.images.shape[1]}
+    out = Path(out) if out is not None else Path(run) / "eval" / (split + ("-tta" if tta else ""))
+    label = f"{cfg.model}, {cfg.variant}" + (", TTA" if tta else "")
+    return _write_outputs(out, label, pred, tables, ds.rows, item_row, item_rot,
+                          fingers_of(cfg.finger), info, make_plots)
+
+
+def evaluate_baseline(
+    data: str | Path,
+    out: str | Path,
+    split: str = "test",
+    finger: str = "index",
+    rotations: RotationCfg | None = None,
+    tta: bool = False,
+    make_plots: bool = True,
+    cfg: GeometricCfg | None = None,
+    progress: bool = False,
+) -> dict:
+    """Score the geometric baseline on a split (same metrics and outputs as `evaluate_run`).
+
+    Args:
+        data: Dataset directory.
+        out: Output folder.
+        split: Split to score.
+        finger: ``index``, ``thumb`` or ``both``.
+        rotations: Rotations of each image it is applied to, as the models see them (default
+            the study's 20 fixed angles).
+        tta: Average each configuration's rotations before scoring.
+        make_plots: Write the PNG figures.
+        cfg: Baseline settings (default `GeometricCfg()`).
+        progress: Show a progress bar.
+
+    Returns:
+        The content of ``metrics.json``.
+    """
+    rotations = rotations or RotationCfg()
+    cfg = cfg or GeometricCfg()
+    tables = open_dataset(data)
+    fingers = fingers_of(finger)
+    rows = tables.rows(split)
+    t0 = time.perf_counter()
+    pred, item_row, item_rot, failures = baseline_predictions(
+        tables, rows, fingers, rotations, cfg, progress)
+    elapsed = time.perf_counter() - t0
+    if tta:
+        pred, item_row = average_over_rotations(pred, item_row)
+        item_rot = np.full(len(item_row), -1)
+    info = {"kind": "baseline", "baseline": "geometric", "settings": dataclasses.asdict(cfg),
+            "data": str(data), "split": split, "tta": tta, "failures": failures,
+            "images_per_s": len(rows) * rotations.count / max(elapsed, 1e-9),
+            "n_rotations": rotations.count}
+    label = "geometric baseline" + (", TTA" if tta else "")
+    return _write_outputs(Path(out), label, pred, tables, rows, item_row, item_rot, fingers,
+                          info, make_plots)
+
+
+# --------------------------------------------------------------------------------------------
+# CLI
+# --------------------------------------------------------------------------------------------
+
+
+def add_command(sub: argparse._SubParsersAction) -> None:
+    """Register `vistac evaluate`."""
+    p = sub.add_parser(
+        "evaluate",
+        help="score a run (or the geometric baseline) with the cone metrics",
+        description="Score a trained run's best checkpoint, or the non-learned geometric "
+        "baseline, on a dataset split: every thesis section-6 metric plus angular metrics per "
+        "finger, a table in the study's layout, metrics.json, predictions.parquet and figures.",
+    )
+    p.add_argument("--run", help="run folder (from `vistac train`)")
+    p.add_argument("--baseline", choices=("geometric",), help="score a baseline instead of a run")
+    p.add_argument("--data", help="dataset (default: the run's; required with --baseline)")
+    p.add_argument("--split", default="test", help="split to score (default test)")
+    p.add_argument("--tta", action="store_true", help="average each configuration's rotations")
+    p.add_argument("--checkpoint", default="best", choices=("best", "last"))
+    p.add_argument("--out", help="output folder (default <run>/eval/<split>; required with "
+                   "--baseline)")
+    p.add_argument("--finger", default="index", choices=("index", "thumb", "both"),
+                   help="baseline only: fingers to predict")
+    p.add_argument("--rotations", default="fixed", choices=("fixed", "random", "none"),
+                   help="baseline only: rotation set")
+    p.add_argument("--n-rotations", type=int, default=20, help="baseline only")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
+    p.add_argument("--device", choices=("auto", "cpu", "cuda"), help="override the run's device")
+    p.set_defaults(func=_handler)
+
+
+def _handler(args: argparse.Namespace) -> int:
+    if args.baseline:
+        if args.run:
+            raise UserError("give either --run or --baseline, not both")
+        if not args.data or not args.out:
+            raise UserError("--baseline needs --data and --out")
+        res = evaluate_baseline(args.data, args.out, args.split, args.finger,
+                                RotationCfg(args.rotations, args.n_rotations), args.tta,
+                                not args.no_plots, progress=True)
+        out = args.out
+    else:
+        if not args.run:
+            raise UserError("give --run RUN (or --baseline geometric --data D --out DIR)")
+        res = evaluate_run(args.run, args.data, args.split, args.tta, args.checkpoint, args.out,
+                           not args.no_plots, args.device, progress=True)
+        out = args.out or str(Path(args.run) / "eval" / (args.split + ("-tta" if args.tta
+                                                                        else "")))
+    print(f"{res['n_predictions']} predictions of {res['n_configs']} configurations; "
+          f"results in {out}")
+    return 0
