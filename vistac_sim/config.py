@@ -7,6 +7,8 @@ it was made, and `--resume` can refuse to continue a run made with other setting
 from __future__ import annotations
 
 import dataclasses
+import types
+import typing
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -93,10 +95,80 @@ class RenderCfg:
 
 
 @dataclass
+class Fts3Cfg:
+    """FTS-3 fingertip sensor model, applied along the 50 Hz force series (per axis, newtons).
+
+    Defaults are the datasheet values of the thesis (range 10 N, resolution 1 mN, non-linearity
+    2.5 %, hysteresis 2 %); drift, offset and sample noise are not on the datasheet and are our
+    estimates. A part whose parameter is 0 is not built.
+    """
+
+    full_scale: float = 10.0  # N per axis; readings saturate at +-full_scale (0: no saturation)
+    resolution: float = 0.001  # N, quantisation step of the readings (0: off)
+    nonlinearity: float = 0.025  # max deviation from linear, fraction of full scale (0: off)
+    hysteresis: float = 0.02  # loading/unloading loop width, fraction of |input| (0: off)
+    hysteresis_smoothing: float = 0.05  # N of input travel over which a branch switch completes
+    drift_std: float = 0.01  # N, stationary std of the slow bias drift (0: off)
+    drift_tau: float = 30.0  # s, correlation time of the drift
+    offset_std: float = 0.005  # N, std of the zero offset left by calibration (0: off)
+    sample_noise: float = 0.002  # N, white noise std per sample (0: off)
+
+
+@dataclass
+class FingerPullCfg:
+    """Sideways (sensor y) force of a finger that is pulled or slides while pressed.
+
+    The added F_y is ``fraction * |F_z|`` with fraction = mean + per-configuration draw +
+    per-press draw (Gaussian), in each listed finger's own sensor frame.
+    """
+
+    mean: float = 0.15  # systematic part, fraction of |F_z| (+y as seen in the study)
+    spread: float = 0.05  # per-press std of the fraction
+    config_spread: float = 0.05  # per-configuration std of the fraction (shared by its presses)
+    fingers: tuple[str, ...] = ("index", "thumb")
+
+
+@dataclass
+class PlacementErrorCfg:
+    """The finger lands a little off its target on each repeat (one physics solve per repeat)."""
+
+    position_std: float = 0.001  # m, std of the target shift per axis (world xy)
+    angle_std_deg: float = 3.0  # std of the approach direction's rotation
+    max_tries: int = 10  # draws per repeat before falling back to the unperturbed grasp
+
+
+@dataclass
 class EffectsCfg:
-    """Measurement effects. Each enabled effect becomes one callable in the pipeline."""
+    """Measurement effects. Each enabled effect becomes one callable in the pipeline.
+
+    Optional effects are ``X | None`` (None: off, never built); a scene file or preset switches
+    any subset on with its parameters (see `vistac_sim.presets`).
+    """
 
     noise: float = 0.0  # relative std of the per-press force noise (0 disables the effect)
+    fts3: Fts3Cfg | None = None
+    finger_pull: FingerPullCfg | None = None
+    placement_error: PlacementErrorCfg | None = None
+
+
+@dataclass
+class RecordingCfg:
+    """The simulated press/hold/release session of a configuration (RH8D/FTS-3 CSV stream).
+
+    Each press: a rise (smooth start, a sharp peak at the solved force), a relaxation of
+    `overshoot` towards the hold level, the hold, a release, then rest. Durations vary by
+    `timing_jitter` (relative, uniform) from press to press.
+    """
+
+    write: bool = False  # write recordings/NNNNNN.csv (`--recordings`)
+    rate_hz: float = 50.0
+    rest_s: float = 1.0  # before the first press and after each press
+    rise_s: float = 0.4
+    hold_s: float = 1.0
+    release_s: float = 0.4
+    overshoot: float = 0.05  # fraction the force relaxes after the peak
+    relax_s: float = 0.15  # time constant of that relaxation
+    timing_jitter: float = 0.2
 
 
 @dataclass
@@ -121,6 +193,7 @@ class GenerateCfg:
     physics: PhysicsCfg = field(default_factory=PhysicsCfg)
     render: RenderCfg = field(default_factory=RenderCfg)
     effects: EffectsCfg = field(default_factory=EffectsCfg)
+    recording: RecordingCfg = field(default_factory=RecordingCfg)
     split: SplitCfg = field(default_factory=SplitCfg)
 
     def to_dict(self) -> dict[str, Any]:
@@ -147,10 +220,22 @@ def from_dict(cls: type, data: dict[str, Any]):
             raise UserError(f"unknown config key {key!r} for {cls.__name__}")
         f = names[key]
         default = getattr(cls(), key) if f.default is dataclasses.MISSING else f.default
-        if dataclasses.is_dataclass(default):
+        optional = optional_dataclass(cls, key)
+        if optional is not None:  # `X | None`: None (off) or a partial dict of X
+            kwargs[key] = None if value is None else from_dict(optional, value)
+        elif dataclasses.is_dataclass(default):
             kwargs[key] = from_dict(type(default), value)
         elif isinstance(default, tuple):
             kwargs[key] = tuple(value)
         else:
             kwargs[key] = value
     return cls(**kwargs)
+
+
+def optional_dataclass(cls: type, name: str) -> type | None:
+    """The dataclass X of a field annotated ``X | None`` (an optional effect), else None."""
+    hint = typing.get_type_hints(cls).get(name)
+    if typing.get_origin(hint) not in (types.UnionType, typing.Union):
+        return None
+    args = [a for a in typing.get_args(hint) if a is not type(None)]
+    return args[0] if len(args) == 1 and dataclasses.is_dataclass(args[0]) else None
