@@ -138,6 +138,67 @@ class PlacementErrorCfg:
 
 
 @dataclass
+class OverlayErrorCfg:
+    """The drawn fingers are offset and rotated from where the fingers really were (image only).
+
+    Per configuration and finger: a shift in the table plane and a rotation about the fingertip,
+    each a fixed bias plus a Gaussian draw. The physics and force labels are untouched; the
+    stored finger boxes follow the drawn fingers.
+    """
+
+    offset_std: float = 0.002  # m, std of the shift per world axis
+    rotation_std_deg: float = 3.0  # std of the rotation about the fingertip
+    offset: tuple[float, float] = (0.0, 0.0)  # m, fixed shift (world x, y) added to the draw
+    rotation_deg: float = 0.0  # fixed rotation (counter-clockwise seen from above) added
+
+
+@dataclass
+class LightingCfg:
+    """A directional key light of random direction and intensity instead of the plain headlight.
+
+    The headlight keeps only its ambient part; the key light adds diffuse and specular light.
+    """
+
+    elevation_deg: tuple[float, float] = (35.0, 80.0)  # uniform range above the table plane
+    azimuth_deg: tuple[float, float] = (0.0, 360.0)  # uniform range, from world +x towards +y
+    intensity: tuple[float, float] = (0.4, 0.8)  # uniform range of the key light's diffuse
+    ambient: tuple[float, float] = (0.3, 0.55)  # uniform range of the ambient light
+    specular: float = 0.2  # key light's specular
+
+
+@dataclass
+class ShadowsCfg:
+    """Shadow mapping of the key light (the slower render path; only scenes that ask pay).
+
+    Without the lighting effect a fixed key light of this direction casts the shadows.
+    """
+
+    map_size: int = 2048  # texels of the shadow map (MuJoCo's `shadowsize`)
+    elevation_deg: float = 55.0  # direction of the fixed key light (no lighting effect)
+    azimuth_deg: float = 30.0
+
+
+@dataclass
+class TableCfg:
+    """Table colour and texture per configuration."""
+
+    rgb_std: float = 0.05  # std of the per-channel change of the table colour
+    texture: float = 0.06  # relative std of the table's brightness pattern (0: plain)
+    texture_scale: float = 0.004  # m, grain size of the pattern
+    texture_octaves: int = 3  # layers of halving grain size
+
+
+@dataclass
+class CameraJitterCfg:
+    """Small changes of the top camera per configuration: shift, scale, tilt and roll."""
+
+    shift_std: float = 0.003  # m, std of the view centre's shift per world axis
+    scale_std: float = 0.02  # relative std of the scale (pixels per metre)
+    tilt_std_deg: float = 1.0  # std of the view axis's angle off vertical (random azimuth)
+    roll_std_deg: float = 1.0  # std of the rotation about the view axis
+
+
+@dataclass
 class EffectsCfg:
     """Measurement effects. Each enabled effect becomes one callable in the pipeline.
 
@@ -149,6 +210,11 @@ class EffectsCfg:
     fts3: Fts3Cfg | None = None
     finger_pull: FingerPullCfg | None = None
     placement_error: PlacementErrorCfg | None = None
+    overlay_error: OverlayErrorCfg | None = None
+    camera_jitter: CameraJitterCfg | None = None
+    lighting: LightingCfg | None = None
+    shadows: ShadowsCfg | None = None
+    table: TableCfg | None = None
 
 
 @dataclass
