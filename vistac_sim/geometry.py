@@ -38,17 +38,26 @@ class TriangleIndex:
         self.lo = self.tri.min(axis=1)
         self.hi = self.tri.max(axis=1)
 
-    def closest(self, point: np.ndarray, radius: float = 0.005) -> tuple[np.ndarray, int]:
-        """Closest point on the mesh to `point` and its face index.
+        e1 = self.tri[:, 1] - self.tri[:, 0]
+        e2 = self.tri[:, 2] - self.tri[:, 0]
+        self.face_normals = unit(np.cross(e1, e2))
+
+    def closest(self, point: np.ndarray, radius: float = 0.005,
+                tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+        """Closest point on the mesh to `point`, and the normals of all faces touching it.
 
         Only faces whose box lies within `radius` are tested; if none does, all faces are.
+        Faces whose own closest point lies within `tol` of the best one share that point (it sits
+        on their common edge or corner); their normals span the normal cone there.
         """
         p = np.asarray(point, float)
         near = np.all((self.lo - radius <= p) & (p <= self.hi + radius), axis=1)
         idx = np.flatnonzero(near) if near.any() else np.arange(len(self.tri))
         q = closest_point_on_triangles(p, self.tri[idx])
-        k = int(np.argmin(((q - p) ** 2).sum(1)))
-        return q[k], int(idx[k])
+        dist = np.sqrt(((q - p) ** 2).sum(1))
+        k = int(np.argmin(dist))
+        touching = idx[dist <= dist[k] + tol]
+        return q[k], self.face_normals[touching]
 
 
 def closest_point_on_triangles(p: np.ndarray, tri: np.ndarray) -> np.ndarray:

@@ -70,6 +70,22 @@ class OutlineSampler:
         back = start - approach * (2 * h.tip_half_length + h.shaft_length + h.shaft_radius)
         return LineString([start, back]).buffer(h.tip_radius, quad_segs=6)
 
+    def check(self, local: Grasp) -> None:
+        """Check a grasp given in the object frame (yaw 0, at the origin).
+
+        Raises:
+            RejectedSample: "unreachable" (a finger would start inside the object) or
+                "fingers_overlap".
+        """
+        h = self.cfg.hand
+        start = local.start(h.tip_radius, h.standoff)
+        feet = [self.finger_footprint(start[k], local.approach[k]) for k in range(2)]
+        for name, foot in zip(("index", "thumb"), feet, strict=True):
+            if self.prepared.intersects(foot):
+                raise RejectedSample("unreachable", f"{name} finger would start inside the object")
+        if feet[0].intersects(feet[1]):
+            raise RejectedSample("fingers_overlap", "thumb and index would overlap")
+
     def sample(self, rng: np.random.Generator, n_thumb_candidates: int = 24) -> Grasp:
         """Draw one grasp in world coordinates.
 

@@ -37,7 +37,6 @@ class ObjectSpec:
     footprint: float  # m, longest side of the top-view outline
     height: float  # m, extrusion height (procedural only)
     path: str = ""  # mesh file (family "mesh")
-    wall: float = 0.0  # m, fixed wall thickness of a thin-wall U (family "thin_wall_u")
 
 
 @dataclass
@@ -88,15 +87,17 @@ def build_object(spec: ObjectSpec, finger_height: float, min_wall: float = 0.001
         section = mesh_section(mesh, finger_height, spec.path)
         pieces = convex_decomposition(mesh, cache_dir)
     else:
-        if spec.family == "thin_wall_u":
-            poly = outlines.thin_wall_u(spec.footprint, spec.wall)
-        else:
-            poly = outlines.outline(spec.family, rng, spec.footprint, min_wall)
-        mesh = trimesh.creation.extrude_polygon(poly, spec.height)
-        pieces = [trimesh.creation.extrude_polygon(p, spec.height)
-                  for p in outlines.convex_pieces(poly)]
-        section = poly
+        poly = outlines.outline(spec.family, rng, spec.footprint, min_wall)
+        return extruded_object(spec, poly, rgb)
     return SceneObject(spec=spec, mesh=mesh, pieces=pieces, section=section, rgb=rgb)
+
+
+def extruded_object(spec: ObjectSpec, poly: Polygon,
+                    rgb: tuple[float, float, float] = (0.25, 0.3, 0.7)) -> SceneObject:
+    """An outline extruded to `spec.height`, collided as its exact convex pieces."""
+    mesh = trimesh.creation.extrude_polygon(poly, spec.height)
+    pieces = [trimesh.creation.extrude_polygon(p, spec.height) for p in outlines.convex_pieces(poly)]
+    return SceneObject(spec=spec, mesh=mesh, pieces=pieces, section=poly, rgb=rgb)
 
 
 def _object_colour(rng: np.random.Generator) -> tuple[float, float, float]:

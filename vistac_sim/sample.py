@@ -24,6 +24,7 @@ from vistac_sim.press import Press, PressResult
 from vistac_sim.render import TopView, encode_png, finger_boxes, px_per_m
 from vistac_sim.scene import FINGERS, compile_scene
 
+_FLAT_COS = np.cos(np.radians(0.5))  # faces this close in direction count as one flat surface
 STREAMS = ("grasp", "scene_effects", "force_effects", "image_effects")
 
 
@@ -45,11 +46,12 @@ class ObjectScene:
     def surface_normals(self, grasp: Grasp, res: PressResult) -> np.ndarray:
         """(2, 3) outward normal of the full-resolution mesh at each pad's contact, world frame.
 
-        Per contact: the closest mesh point q to MuJoCo's contact point and the closest point s on
-        the pad capsule's axis to q; the normal is (s - q)/|s - q|. On a face this is the face
-        normal; on an edge or corner it is the member of the normal cone that points at the pad,
-        which is the direction a frictionless contact pushes along. Several contacts of one pad
-        are averaged with their normal-force weights.
+        Per contact, q is the closest mesh point to MuJoCo's contact point. Inside a face (or on
+        an edge between coplanar faces) the normal is the face normal. On a sharp edge or corner
+        it is the member of the normal cone that points at the pad, (s - q)/|s - q| with s the
+        closest point of the pad capsule's axis, which is the direction a frictionless contact
+        pushes along there. Several contacts of one pad are averaged with their normal-force
+        weights.
         """
         d, ids, h = self.press.data, self.ids, self.cfg.hand
         r2 = rot2(grasp.object_yaw)
@@ -63,11 +65,14 @@ class ObjectScene:
             for c in np.flatnonzero((g1 == ids.pad[f]) | (g2 == ids.pad[f])):
                 p = d.contact.pos[c] - origin
                 p_obj = np.r_[r2.T @ p[:2], p[2]]
-                q_obj, _ = self.triangles.closest(p_obj)
-                q = np.r_[r2 @ q_obj[:2], q_obj[2]] + origin
-                s = closest_on_segment(q, tip - axis * 2 * h.tip_half_length, tip)
+                q_obj, face_n = self.triangles.closest(p_obj)
+                if np.all(face_n @ face_n[0] > _FLAT_COS):
+                    n = np.r_[r2 @ face_n[0, :2], face_n[0, 2]]
+                else:
+                    q = np.r_[r2 @ q_obj[:2], q_obj[2]] + origin
+                    n = unit(closest_on_segment(q, tip - axis * 2 * h.tip_half_length, tip) - q)
                 mujoco.mj_contactForce(self.model, d, int(c), f6)
-                out[k] += max(f6[0], 1e-12) * unit(s - q)
+                out[k] += max(f6[0], 1e-12) * n
         return unit(out)
 
 
@@ -139,6 +144,21 @@ def unit_labels(forces: np.ndarray) -> np.ndarray:
     return np.where(n > 0, yz / safe, np.array([0.0, -1.0]))
 
 
+def solve(scene: ObjectScene, grasp: Grasp, cfg: GenerateCfg) -> tuple[PressResult, np.ndarray]:
+    """Press, then check the noise-free forces against the mesh normals (sensor frame).
+
+    Returns:
+        The press result and the (2, 3) outward surface normals in each sensor frame.
+
+    Raises:
+        RejectedSample: from the press or the physical checks.
+    """
+    res = scene.press.run(grasp)
+    normal = np.einsum("kji,kj->ki", res.rotation, scene.surface_normals(grasp, res))
+    check_physics(res.force_sensor, normal, cfg.physics.friction, cfg.physics.cone_tolerance_deg)
+    return res, normal
+
+
 def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: GenerateCfg,
                        pipeline: Pipeline) -> Configuration:
     """Draw, press, check, label and render configuration `config_id`.
@@ -153,11 +173,7 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     for _ in range(cfg.grasp.max_redraws):
         try:
             grasp = scene.sampler.sample(rng["grasp"])
-            res = scene.press.run(grasp)
-            normal_w = scene.surface_normals(grasp, res)
-            normal = np.einsum("kji,kj->ki", res.rotation, normal_w)
-            check_physics(res.force_sensor, normal, cfg.physics.friction,
-                          cfg.physics.cone_tolerance_deg)
+            res, normal = solve(scene, grasp, cfg)
             break
         except RejectedSample as exc:
             redraws[exc.reason] += 1

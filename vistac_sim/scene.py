@@ -39,21 +39,11 @@ def _fmt(values) -> str:
     return " ".join(f"{v:.9g}" for v in np.ravel(values))
 
 
-def _mesh_asset(name: str, mesh) -> str:
-    return f'<mesh name="{name}" vertex="{_fmt(mesh.vertices)}" face="{_fmt(mesh.faces)}"/>'
-
-
-def scene_xml(obj: SceneObject, cfg: GenerateCfg) -> str:
-    """MJCF of the scene for one object."""
+def scene_xml(cfg: GenerateCfg) -> str:
+    """MJCF of the scene without the object's geoms (`compile_scene` adds them as arrays)."""
     hand, phys, rend = cfg.hand, cfg.physics, cfg.render
     condim = 1 if phys.friction == 0 else 3
-    assets = [_mesh_asset("visual", obj.mesh)]
-    assets += [_mesh_asset(f"piece{i}", p) for i, p in enumerate(obj.pieces)]
-    pieces = "\n".join(
-        f'<geom name="piece{i}" type="mesh" mesh="piece{i}" group="{OBJECT_GROUP_COLLISION}" '
-        f'contype="1" conaffinity="1" rgba="0 0 0 0"/>'
-        for i in range(len(obj.pieces))
-    )
+    assets = []
     r, hl = hand.tip_radius, hand.tip_half_length
     shaft0 = -2 * hl - 0.5 * hand.shaft_radius
     shaft1 = shaft0 - hand.shaft_length
@@ -82,7 +72,7 @@ def scene_xml(obj: SceneObject, cfg: GenerateCfg) -> str:
     )
     size = rend.image_size
     return f"""
-<mujoco model="vistac_{obj.object_id}">
+<mujoco model="vistac_scene">
   <compiler angle="radian" autolimits="true"/>
   <option timestep="{phys.timestep}" cone="elliptic" gravity="0 0 -9.81"/>
   <default>
@@ -101,11 +91,7 @@ def scene_xml(obj: SceneObject, cfg: GenerateCfg) -> str:
     <geom name="table" type="plane" size="0.5 0.5 0.01" rgba="{_fmt(rend.table_rgb)} 1"
           contype="0" conaffinity="0"/>
     <camera name="top" pos="0 0 1" projection="orthographic" fovy="{rend.view_extent}"/>
-    <body name="object">
-      <geom name="object_visual" type="mesh" mesh="visual" rgba="{_fmt(obj.rgb)} 1"
-            contype="0" conaffinity="0"/>
-      {pieces}
-    </body>
+    <body name="object"/>
     {"".join(fingers)}
   </worldbody>
   <actuator>
@@ -157,6 +143,35 @@ class SceneIds:
 
 
 def compile_scene(obj: SceneObject, cfg: GenerateCfg) -> tuple[mujoco.MjModel, SceneIds]:
-    """Compile the scene of one object."""
-    model = mujoco.MjModel.from_xml_string(scene_xml(obj, cfg))
+    """Compile the scene of one object.
+
+    The object's meshes go in as arrays through `MjSpec` (formatting a 300k-face mesh as MJCF
+    text and parsing it back costs seconds): the full-resolution visual mesh, which does not
+    collide, and the convex pieces, which collide and are hidden in renders (group 3).
+    """
+    spec = mujoco.MjSpec.from_string(scene_xml(cfg))
+    body = spec.body("object")
+    phys = cfg.physics
+    _add_mesh_geom(spec, body, "object_visual", obj.mesh, (*obj.rgb, 1.0), collide=False, group=0)
+    for i, piece in enumerate(obj.pieces):
+        g = _add_mesh_geom(spec, body, f"piece{i}", piece, (0, 0, 0, 0), collide=True,
+                           group=OBJECT_GROUP_COLLISION)
+        g.condim = 1 if phys.friction == 0 else 3
+        g.friction = [phys.friction, 0.005, 0.0001]
+        g.solref = list(phys.solref)
+        g.solimp = [*phys.solimp, 0.5, 2.0]
+    model = spec.compile()
     return model, SceneIds.of(model)
+
+
+def _add_mesh_geom(spec: mujoco.MjSpec, body, name: str, mesh, rgba, collide: bool, group: int):
+    asset = spec.add_mesh()
+    asset.name = f"{name}_mesh"
+    asset.uservert = np.asarray(mesh.vertices, np.float32).ravel()
+    asset.userface = np.asarray(mesh.faces, np.int32).ravel()
+    g = body.add_geom()
+    g.name, g.type, g.meshname = name, mujoco.mjtGeom.mjGEOM_MESH, asset.name
+    g.rgba = list(rgba)
+    g.group = group
+    g.contype = g.conaffinity = int(collide)
+    return g
