@@ -7,7 +7,7 @@ normal at the contact. Everything is read from the (possibly rotated) top-view i
    few pixels when the dataset has boxes), largest connected blob. Its principal axis (PCA of
    the pixel coordinates) is the finger axis, its half-width (95th percentile of the distance to
    the axis) the tip radius r.
-2. Object: pixels farther than `colour_tol` from the table colour that are not finger pixels
+2. Object: pixels farther than `object_tol` from the table colour that are not finger pixels
    (either finger, dilated by two pixels against anti-aliased fringes).
 3. Tip: the axis end nearer to the object (distance transform of the object mask); the
    approach direction a points from the other end to it; the tip centre lies r behind that end.
@@ -41,14 +41,15 @@ class GeometricCfg:
     """Settings of the geometric baseline.
 
     Attributes:
-        colour_tol: Largest RGB distance (0-255 units) of a pixel to the finger colour, and
-            smallest to the table colour for an object pixel.
+        colour_tol: Largest RGB distance (0-255 units) of a finger pixel to the finger colour.
+        object_tol: Smallest RGB distance of an object pixel to the table colour.
         box_pad: Pixels added round a finger box before searching the finger in it.
         reach: Object pixels closer than r + reach * r to the tip centre are the contact
             neighbourhood (widened twice, to 2x and 3x, when none is found).
     """
 
     colour_tol: float = 60.0
+    object_tol: float = 25.0
     box_pad: int = 3
     reach: float = 0.5
 
@@ -126,7 +127,7 @@ def geometric_direction(
     for m in masks.values():
         any_finger |= m
     hidden = cv2.dilate(any_finger.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
-    obj = (_colour_dist(img, table_rgb) > cfg.colour_tol) & ~hidden
+    obj = (_colour_dist(img, table_rgb) > cfg.object_tol) & ~hidden
     if not obj.any():
         return fallback, False
     dist = cv2.distanceTransform((~obj).astype(np.uint8), cv2.DIST_L2, 5)

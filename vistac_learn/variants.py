@@ -102,7 +102,8 @@ def otsu_threshold(values: np.ndarray, bins: int = 256) -> float:
         bins: Histogram bins over [min, max].
 
     Returns:
-        The threshold (a bin edge); the minimum if all values are equal.
+        The threshold (a bin edge, or the middle of a run of empty bins that all split the
+        values alike); the minimum if all values are equal.
     """
     lo, hi = float(values.min()), float(values.max())
     if hi <= lo:
@@ -117,7 +118,13 @@ def otsu_threshold(values: np.ndarray, bins: int = 256) -> float:
     with np.errstate(divide="ignore", invalid="ignore"):
         between = (mu_t * w0 - mu) ** 2 / (w0 * w1)
     between[~np.isfinite(between)] = -1
-    return float(edges[int(np.argmax(between)) + 1])
+    # empty bins make a plateau of equal maxima (the same split of the values): take the
+    # middle of the first plateau, so that rounding does not pick an arbitrary end of it
+    ties = np.flatnonzero(between >= between.max() * (1 - 1e-9))
+    run_end = ties[0]
+    while run_end + 1 in ties:
+        run_end += 1
+    return float(0.5 * (edges[ties[0] + 1] + edges[run_end + 1]))
 
 
 def auto_canny(rgb: np.ndarray, low_ratio: float = 0.5, floor: float = 20.0) -> np.ndarray:
