@@ -134,7 +134,6 @@ class PlacementErrorCfg:
 
     position_std: float = 0.001  # m, std of the target shift per axis (world xy)
     angle_std_deg: float = 3.0  # std of the approach direction's rotation
-    max_tries: int = 10  # draws per repeat before falling back to the unperturbed grasp
 
 
 @dataclass

@@ -7,15 +7,22 @@ Three stages, each a list in the `Pipeline`:
 - ``force``: ``effect(forces, rng) -> forces`` on the measured forces of all repeats of one
   configuration at once, shape (K, 2, 3): repeat, finger (index, thumb), sensor-frame xyz, newtons.
   Without scene effects, the K repeats share one solve and differ only through these effects.
+- ``sensor``: ``effect(series, dt, rng) -> series`` on the 50 Hz force series of a configuration's
+  simulated press/hold/release session, shape (T, 2, 3) (see `vistac_sim.session`); each press's
+  reading is the series at its peak sample. Only simulated when a sensor effect or `--recordings`
+  asks for it.
 - ``image``: ``effect(view, rng) -> view`` on the render request of a configuration.
 
 A disabled effect is not in the list, so it is never constructed nor called and costs nothing.
-Every effect reports its parameters for the manifest through ``params()``.
+Every effect reports its parameters for the manifest through ``params()``. `EFFECT_BUILDERS`
+maps each field of `EffectsCfg` to the function that builds its effects from the field's value;
+a new effect adds its config field and one line there.
 """
 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -59,6 +66,7 @@ class Pipeline:
 
     scene: list[Effect] = field(default_factory=list)
     force: list[Effect] = field(default_factory=list)
+    sensor: list[Effect] = field(default_factory=list)
     image: list[Effect] = field(default_factory=list)
 
     @property
@@ -66,8 +74,13 @@ class Pipeline:
         """True when some effect needs one physics solve per repeat."""
         return bool(self.scene)
 
+    @property
+    def needs_series(self) -> bool:
+        """True when some effect works on the force time series of a session."""
+        return bool(self.sensor)
+
     def all(self) -> list[Effect]:
-        return [*self.scene, *self.force, *self.image]
+        return [*self.scene, *self.force, *self.sensor, *self.image]
 
     def describe(self) -> list[dict[str, Any]]:
         """One entry per enabled effect: name, stage and parameters (for the manifest)."""
@@ -83,6 +96,11 @@ class Pipeline:
             forces = effect(forces, rng)
         return forces
 
+    def apply_sensor(self, series: np.ndarray, dt: float, rng: np.random.Generator) -> np.ndarray:
+        for effect in self.sensor:
+            series = effect(series, dt, rng)
+        return series
+
     def apply_image(self, view, rng: np.random.Generator):
         for effect in self.image:
             view = effect(view, rng)
@@ -97,8 +115,45 @@ def build_pipeline(cfg: EffectsCfg) -> Pipeline:
     return pipeline
 
 
+def _noise_effects(noise: float) -> list[Effect]:
+    return [ForceNoise(relative_std=noise)] if noise > 0 else []
+
+
+def _fts3_effects(cfg) -> list[Effect]:
+    from vistac_sim.sensor_model import fts3_effects
+
+    return fts3_effects(cfg)
+
+
+def _finger_pull(cfg) -> list[Effect]:
+    from vistac_sim.hand_effects import FingerPull
+
+    return [FingerPull.from_cfg(cfg)]
+
+
+def _placement_error(cfg) -> list[Effect]:
+    from vistac_sim.hand_effects import PlacementError
+
+    return [PlacementError.from_cfg(cfg)]
+
+
+# EffectsCfg field -> builder of its effects. A builder is only called for a field that is not
+# None; effects run in the order of the EffectsCfg fields (within each stage).
+EFFECT_BUILDERS: dict[str, Callable[[Any], list[Effect]]] = {
+    "noise": _noise_effects,
+    "fts3": _fts3_effects,
+    "finger_pull": _finger_pull,
+    "placement_error": _placement_error,
+}
+
+
 def _enabled_effects(cfg: EffectsCfg) -> list[Effect]:
     effects: list[Effect] = []
-    if cfg.noise > 0:
-        effects.append(ForceNoise(relative_std=cfg.noise))
+    for f in dataclasses.fields(cfg):
+        value = getattr(cfg, f.name)
+        if value is None:
+            continue
+        if f.name not in EFFECT_BUILDERS:
+            raise RuntimeError(f"EffectsCfg.{f.name} has no builder in EFFECT_BUILDERS")
+        effects += EFFECT_BUILDERS[f.name](value)
     return effects
