@@ -193,7 +193,7 @@ class CameraJitterCfg:
 
     shift_std: float = 0.003  # m, std of the view centre's shift per world axis
     scale_std: float = 0.02  # relative std of the scale (pixels per metre)
-    tilt_std_deg: float = 1.0  # std of the view axis's angle off vertical (random azimuth)
+    tilt_std_deg: float = 1.0  # std of the view axis's lean off vertical, per horizontal axis
     roll_std_deg: float = 1.0  # std of the rotation about the view axis
 
 

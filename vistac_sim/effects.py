@@ -137,6 +137,15 @@ def _placement_error(cfg) -> list[Effect]:
     return [PlacementError.from_cfg(cfg)]
 
 
+def _image_effect(key: str) -> Callable[[Any], list[Effect]]:
+    def build(cfg) -> list[Effect]:
+        from vistac_sim.image_effects import image_effect
+
+        return [image_effect(key, cfg)]
+
+    return build
+
+
 # EffectsCfg field -> builder of its effects. A builder is only called for a field that is not
 # None; effects run in the order of the EffectsCfg fields (within each stage).
 EFFECT_BUILDERS: dict[str, Callable[[Any], list[Effect]]] = {
@@ -144,6 +153,8 @@ EFFECT_BUILDERS: dict[str, Callable[[Any], list[Effect]]] = {
     "fts3": _fts3_effects,
     "finger_pull": _finger_pull,
     "placement_error": _placement_error,
+    **{key: _image_effect(key) for key in ("overlay_error", "camera_jitter", "lighting",
+                                            "shadows", "table")},
 }
 
 
