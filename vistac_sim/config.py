@@ -231,8 +231,8 @@ class RecordingCfg:
     rise_s: float = 0.4
     hold_s: float = 1.0
     release_s: float = 0.4
-    overshoot: float = 0.05  # fraction the force relaxes after the peak
-    relax_s: float = 0.15  # time constant of that relaxation
+    overshoot: float = 0.08  # fraction the force relaxes after the peak
+    relax_s: float = 0.1  # time constant of that relaxation
     timing_jitter: float = 0.2
 
 
