@@ -21,11 +21,15 @@ from vistac_sim.geometry import TriangleIndex, angle_deg, closest_on_segment, ro
 from vistac_sim.grasp import Grasp, OutlineSampler
 from vistac_sim.objects import ObjectSpec, SceneObject, build_object
 from vistac_sim.press import Press, PressResult
+from vistac_sim.recordings import recording_csv
 from vistac_sim.render import TopView, encode_png, finger_boxes, px_per_m
 from vistac_sim.scene import FINGERS, compile_scene
+from vistac_sim.session import simulate_session
 
 _FLAT_COS = np.cos(np.radians(0.5))  # faces this close in direction count as one flat surface
-STREAMS = ("grasp", "scene_effects", "force_effects", "image_effects")
+STREAMS = ("grasp", "scene_effects", "force_effects", "image_effects", "session",
+           "sensor_effects")
+SCENE_EFFECT_TRIES = 10  # draws of the scene effects per repeat before the unperturbed grasp
 
 
 class ObjectScene:
@@ -108,6 +112,7 @@ class Configuration:
     row: dict
     presses: list[dict]
     png: bytes
+    recording: bytes | None = None  # RH8D/FTS-3 CSV of the session (only with --recordings)
 
 
 def config_streams(seed: int, config_id: int) -> dict[str, np.random.Generator]:
@@ -184,14 +189,17 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     png = encode_png(scene.view.render(scene.press.data))
     clean = res.force_sensor
     if pipeline.changes_physics:
-        solved = []
-        for _ in range(cfg.repeats):
-            moved = pipeline.apply_scene(grasp, rng["scene_effects"])
-            solved.append(scene.press.run(moved).force_sensor)
-        forces = np.stack(solved)
+        forces = np.stack([_solve_repeat(scene, pipeline, grasp, clean, rng["scene_effects"])
+                           for _ in range(cfg.repeats)])
     else:
         forces = np.broadcast_to(clean, (cfg.repeats, 2, 3)).copy()
     forces = pipeline.apply_force(forces, rng["force_effects"])
+    recording = None
+    if pipeline.needs_series or cfg.recording.write:
+        session = simulate_session(forces, pipeline, cfg.recording, rng["session"],
+                                   rng["sensor_effects"])
+        forces = session.readings
+        recording = recording_csv(session) if cfg.recording.write else None
     labels = unit_labels(forces)
     row = _config_row(config_id, scene.obj, grasp, res, clean, normal, boxes, cfg)
     row["redraws"] = int(sum(redraws.values()))
@@ -200,7 +208,23 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
         row=row,
         presses=[_press_row(config_id, k, forces[k], labels[k]) for k in range(cfg.repeats)],
         png=png,
+        recording=recording,
     )
+
+
+def _solve_repeat(scene: ObjectScene, pipeline: Pipeline, grasp: Grasp, clean: np.ndarray,
+                  rng: np.random.Generator) -> np.ndarray:
+    """(2, 3) sensor-frame force of one repeat under the scene effects.
+
+    A perturbed grasp that the press rejects is drawn again, up to `SCENE_EFFECT_TRIES` times;
+    then the repeat keeps the unperturbed force `clean`.
+    """
+    for _ in range(SCENE_EFFECT_TRIES):
+        try:
+            return scene.press.run(pipeline.apply_scene(grasp, rng)).force_sensor
+        except RejectedSample:
+            continue
+    return clean
 
 
 def _config_row(config_id, obj: SceneObject, grasp: Grasp, res: PressResult, clean, normal,
