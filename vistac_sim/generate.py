@@ -21,6 +21,7 @@ from vistac_sim import dataset
 from vistac_sim.config import GenerateCfg
 from vistac_sim.effects import build_pipeline
 from vistac_sim.objects import ObjectSpec, default_cache_dir, mesh_library, procedural_library
+from vistac_sim.recordings import recording_name
 from vistac_sim.sample import SceneCache, make_configuration, object_index
 
 
@@ -65,9 +66,13 @@ def _run_chunk(chunk: Chunk) -> int:
     """Make every configuration of a chunk, write its images, then commit its shard."""
     cfg, out = _WORKER["cfg"], _WORKER["out"]
     rows, presses = [], []
+    if cfg.recording.write:
+        (out / "recordings").mkdir(exist_ok=True)
     for cid in chunk.config_ids:
         c = make_configuration(cid, cfg.seed, _WORKER["scenes"], cfg, _WORKER["pipeline"])
         dataset.atomic_write_bytes(out / "images" / c.row["image"], c.png)
+        if c.recording is not None:
+            dataset.atomic_write_bytes(out / "recordings" / recording_name(cid), c.recording)
         rows.append(c.row)
         presses += c.presses
     cpath, ppath = dataset.shard_paths(out, chunk.index)
