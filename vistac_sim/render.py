@@ -17,8 +17,9 @@ from vistac_sim.scene import FINGERS, OBJECT_GROUP_COLLISION, SceneIds
 class TopView:
     """Renders one compiled scene from its top camera. Create it inside the worker process."""
 
-    def __init__(self, model: mujoco.MjModel, ids: SceneIds, cfg: RenderCfg):
+    def __init__(self, model: mujoco.MjModel, ids: SceneIds, cfg: RenderCfg, shadow_size: int = 0):
         self.model, self.ids, self.cfg = model, ids, cfg
+        model.vis.quality.shadowsize = shadow_size  # shadow map texels; 0: no shadow pass
         self.renderer = mujoco.Renderer(model, cfg.image_size, cfg.image_size)
         self.option = mujoco.MjvOption()
         self.option.geomgroup[OBJECT_GROUP_COLLISION] = 0

@@ -19,6 +19,7 @@ from vistac_sim.effects import Pipeline
 from vistac_sim.errors import RejectedSample
 from vistac_sim.geometry import TriangleIndex, angle_deg, closest_on_segment, rot2, unit
 from vistac_sim.grasp import Grasp, OutlineSampler
+from vistac_sim.image_effects import render_with_effects, shadow_map_size
 from vistac_sim.objects import ObjectSpec, SceneObject, build_object
 from vistac_sim.press import Press, PressResult
 from vistac_sim.recordings import recording_csv
@@ -41,7 +42,8 @@ class ObjectScene:
         self.press = Press(self.model, self.ids, cfg)
         self.sampler = OutlineSampler(obj.section, cfg)
         self.triangles = TriangleIndex(obj.mesh.vertices, obj.mesh.faces)
-        self.view = TopView(self.model, self.ids, cfg.render) if render else None
+        self.view = TopView(self.model, self.ids, cfg.render,
+                            shadow_size=shadow_map_size(cfg.effects)) if render else None
 
     def close(self) -> None:
         if self.view is not None:
@@ -185,8 +187,13 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     else:
         raise RuntimeError(f"configuration {config_id}: object {scene.obj.object_id} gave no "
                            f"valid grasp in {cfg.grasp.max_redraws} draws ({dict(redraws)})")
-    boxes = finger_boxes(scene.model, scene.press.data, scene.ids, cfg.render)
-    png = encode_png(scene.view.render(scene.press.data))
+    if pipeline.image:  # the image, its boxes and camera columns follow the sampled view
+        rgb, boxes, view_cols = render_with_effects(scene.view, scene.press.data, pipeline,
+                                                    cfg.render, rng["image_effects"])
+    else:
+        boxes = finger_boxes(scene.model, scene.press.data, scene.ids, cfg.render)
+        rgb, view_cols = scene.view.render(scene.press.data), {}
+    png = encode_png(rgb)
     clean = res.force_sensor
     if pipeline.changes_physics:
         forces = np.stack([_solve_repeat(scene, pipeline, grasp, clean, rng["scene_effects"])
@@ -204,6 +211,7 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     row = _config_row(config_id, scene.obj, grasp, res, clean, normal, boxes, cfg)
     row["redraws"] = int(sum(redraws.values()))
     row["redraw_reasons"] = ",".join(f"{k}:{v}" for k, v in sorted(redraws.items()))
+    row |= view_cols
     return Configuration(
         row=row,
         presses=[_press_row(config_id, k, forces[k], labels[k]) for k in range(cfg.repeats)],
