@@ -182,7 +182,7 @@ class TableCfg:
     """Table colour and texture per configuration."""
 
     rgb_std: float = 0.05  # std of the per-channel change of the table colour
-    texture: float = 0.06  # relative std of the table's brightness pattern (0: plain)
+    texture: float = 0.04  # relative std of the table's brightness pattern (0: plain)
     texture_scale: float = 0.004  # m, grain size of the pattern
     texture_octaves: int = 3  # layers of halving grain size
 

@@ -269,7 +269,7 @@ class Table(Effect):
     name: ClassVar[str] = "table"
     stage: ClassVar[str] = "image"
     rgb_std: float = 0.05
-    texture: float = 0.06
+    texture: float = 0.04
     texture_scale: float = 0.004
     texture_octaves: int = 3
 
