@@ -96,7 +96,8 @@ def extruded_object(spec: ObjectSpec, poly: Polygon,
                     rgb: tuple[float, float, float] = (0.25, 0.3, 0.7)) -> SceneObject:
     """An outline extruded to `spec.height`, collided as its exact convex pieces."""
     mesh = trimesh.creation.extrude_polygon(poly, spec.height)
-    pieces = [trimesh.creation.extrude_polygon(p, spec.height) for p in outlines.convex_pieces(poly)]
+    pieces = [trimesh.creation.extrude_polygon(p, spec.height)
+              for p in outlines.convex_pieces(poly)]
     return SceneObject(spec=spec, mesh=mesh, pieces=pieces, section=poly, rgb=rgb)
 
 
@@ -135,7 +136,7 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            loaded = trimesh.load(path, force="mesh", process=True)
+            loaded = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise UserError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from None
     if not isinstance(loaded, trimesh.Trimesh):
@@ -145,17 +146,20 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
         raise UserError(f"{path}: empty mesh (no triangles)")
     if not np.isfinite(mesh.vertices).all():
         raise UserError(f"{path}: vertex coordinates are NaN or infinite")
+    mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)  # merge duplicate vertices
     ext = mesh.extents
     if ext.min() <= 1e-9 * max(ext.max(), 1e-30):
         raise UserError(f"{path}: zero volume (the mesh is flat or degenerate)")
-    if not mesh.is_watertight:
-        trimesh.repair.fill_holes(mesh)
+    soup = f"{path}: not a closed surface (open or non-manifold triangle soup)"
+    was_open = not mesh.is_watertight
+    if was_open:
+        trimesh.repair.fill_holes(mesh)  # small holes only; a soup stays open or encloses nothing
     if not mesh.is_watertight or not mesh.is_winding_consistent:
-        raise UserError(f"{path}: not a closed surface (open or non-manifold triangle soup)")
+        raise UserError(soup)
     if mesh.volume < 0:
         mesh.invert()
-    if abs(mesh.volume) <= 1e-12 * ext.prod():
-        raise UserError(f"{path}: zero volume (the mesh encloses no space)")
+    if abs(mesh.volume) <= 1e-9 * ext.prod():
+        raise UserError(soup if was_open else f"{path}: zero volume (the mesh encloses no space)")
     return mesh
 
 

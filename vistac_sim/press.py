@@ -118,5 +118,5 @@ class Press:
 
 
 def _warnings(d: mujoco.MjData) -> str:
-    names = [w.name for w in mujoco.mjtWarning]
-    return ", ".join(f"{names[i]} x{w.number}" for i, w in enumerate(d.warning) if w.number)
+    return ", ".join(f"{mujoco.mjtWarning(i).name} x{w.number}"
+                     for i, w in enumerate(d.warning) if w.number)

@@ -1,0 +1,61 @@
+"""Top view: exact finger boxes, finger colours, and the world-to-pixel mapping."""
+
+import numpy as np
+import pytest
+
+from vistac_sim import objects
+from vistac_sim.config import GenerateCfg
+from vistac_sim.errors import RejectedSample
+from vistac_sim.render import finger_boxes, world_to_pixel
+from vistac_sim.sample import ObjectScene, solve
+
+
+@pytest.fixture(scope="module")
+def pressed_scenes():
+    cfg = GenerateCfg()
+    out = []
+    for spec in objects.procedural_library(cfg.objects, 3)[:4]:
+        scene = ObjectScene(objects.build_object(spec, cfg.hand.height), cfg)
+        rng = np.random.default_rng(1)
+        while True:
+            try:
+                grasp = scene.sampler.sample(rng)
+                solve(scene, grasp, cfg)
+                break
+            except RejectedSample:
+                continue
+        out.append((scene, grasp, scene.view.render(scene.press.data),
+                    scene.view.render(scene.press.data, segmentation=True)))
+    yield cfg, out
+    for scene, *_ in out:
+        scene.close()
+
+
+def test_boxes_match_segmentation(pressed_scenes):
+    cfg, scenes = pressed_scenes
+    for scene, _, _, seg in scenes:
+        boxes = finger_boxes(scene.model, scene.press.data, scene.ids, cfg.render)
+        for k, f in enumerate(("index", "thumb")):
+            mask = np.isin(seg[..., 0], [scene.ids.pad[f], scene.ids.shaft[f]])
+            ys, xs = np.nonzero(mask)
+            seg_box = [xs.min(), ys.min(), xs.max() + 1 - xs.min(), ys.max() + 1 - ys.min()]
+            np.testing.assert_allclose(boxes[k], seg_box, atol=1.5)
+
+
+def test_fingers_are_drawn_green_and_red(pressed_scenes):
+    cfg, scenes = pressed_scenes
+    for scene, _, rgb, seg in scenes:
+        assert rgb.shape == (cfg.render.image_size, cfg.render.image_size, 3)
+        index = np.isin(seg[..., 0], [scene.ids.pad["index"], scene.ids.shaft["index"]])
+        thumb = np.isin(seg[..., 0], [scene.ids.pad["thumb"], scene.ids.shaft["thumb"]])
+        np.testing.assert_array_equal(np.median(rgb[index], axis=0), [0, 255, 0])
+        np.testing.assert_array_equal(np.median(rgb[thumb], axis=0), [255, 0, 0])
+
+
+def test_tip_lands_where_world_to_pixel_says(pressed_scenes):
+    cfg, scenes = pressed_scenes
+    for scene, _, _, seg in scenes:
+        tip = scene.press.data.xpos[scene.model.geom_bodyid[scene.ids.pad["index"]]][:2]
+        u, v = world_to_pixel(tip, cfg.render).astype(int)
+        if 0 <= u < cfg.render.image_size and 0 <= v < cfg.render.image_size:
+            assert seg[v, u, 0] == scene.ids.pad["index"]
