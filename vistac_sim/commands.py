@@ -6,6 +6,8 @@ import argparse
 import json
 
 from vistac_sim.config import PROCEDURAL_FAMILIES, GenerateCfg
+from vistac_sim.effects import build_pipeline
+from vistac_sim.presets import PRESETS, resolve
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -24,8 +26,19 @@ def _add_generate(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--out", required=True, help="dataset folder to create")
     p.add_argument("--n", type=int, default=d.n, help="number of grasp configurations")
-    p.add_argument("--noise", type=float, default=d.effects.noise,
-                   help="relative std of the per-press force measurement noise")
+    p.add_argument("--noise", type=float, default=None,
+                   help="relative std of the per-press force measurement noise (default: the "
+                   "scene file's effects.noise, else 0)")
+    p.add_argument("--preset", choices=tuple(PRESETS), default=None,
+                   help="named set of effects: clean (nothing but --noise), lab (what the "
+                   "reference study's set-up suffered), harsh (more); default: the scene "
+                   "file's preset, else clean")
+    p.add_argument("--scene", metavar="FILE", default=None,
+                   help="YAML or TOML file switching effects on/off with parameters, merged "
+                   "over the preset")
+    p.add_argument("--recordings", action="store_true",
+                   help="also write recordings/NNNNNN.csv per configuration in the RH8D/FTS-3 "
+                   "layout (50 Hz press/hold/release session, integer mN)")
     p.add_argument("--repeats", type=int, default=d.repeats, help="presses per configuration")
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument("--workers", type=int, default=0, help="processes (0: all cores)")
@@ -62,10 +75,12 @@ def generate_cfg_from_args(args: argparse.Namespace) -> GenerateCfg:
 
     if args.n < 1 or args.repeats < 1:
         raise UserError("--n and --repeats must be at least 1")
-    if args.noise < 0 or args.friction < 0:
+    if (args.noise is not None and args.noise < 0) or args.friction < 0:
         raise UserError("--noise and --friction must not be negative")
     cfg = GenerateCfg(n=args.n, seed=args.seed, repeats=args.repeats, chunk_size=args.chunk_size)
-    cfg.effects.noise = args.noise
+    cfg.effects, cfg.recording = resolve(args.preset, args.scene, args.noise)
+    cfg.recording.write = cfg.recording.write or args.recordings
+    build_pipeline(cfg.effects)  # bad effect parameters fail here, before any work starts
     cfg.physics.friction = args.friction
     cfg.render.image_size = args.image_size
     cfg.objects.paths = tuple(args.objects)
