@@ -13,6 +13,9 @@ from vistac_sim.presets import PRESETS, resolve
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the simulation sub-commands (generate, ...) to the parser."""
     _add_generate(sub)
+    from vistac_sim.ingest import add_ingest_command
+
+    add_ingest_command(sub)
 
 
 def _add_generate(sub: argparse._SubParsersAction) -> None:
