@@ -26,7 +26,7 @@ def _presses(cfg, family, n, seed=0):
         try:
             grasp = scene.sampler.sample(rng)
             res, normal = solve(scene, grasp, cfg)
-            assert sum(w.number for w in scene.press.data.warning) == 0
+            assert not scene.press.data.warning.number.any()
             done.append((grasp, res, normal, scene))
         except RejectedSample as exc:
             assert exc.reason in KNOWN_REASONS

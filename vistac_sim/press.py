@@ -72,7 +72,7 @@ class Press:
         if d.ncon and (d.contact.dist[: d.ncon] < 0).any():
             raise RejectedSample("start_penetrates", "a finger starts inside the object")
         mujoco.mj_step(m, d, nstep=phys.settle_steps)
-        if sum(w.number for w in d.warning):
+        if d.warning.number.any():
             raise RejectedSample("mujoco_warning", _warnings(d))
         if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
             raise RejectedSample("non_finite", "non-finite state after settling")
