@@ -233,17 +233,24 @@ def read_recording(path: Path, cfg: IngestCfg) -> np.ndarray:
         raise UserError(f"{path}: unreadable row: {_parser_message(exc)}") from exc
     if len(df) == 0:
         raise UserError(f"{path}: line 2: no data rows after the header")
+    lines = text.split("\n")[1:]
+    fields = np.fromiter((line.count(",") + 1 for line in lines), int, len(lines))
+    short = np.flatnonzero(fields < need)
+    if len(short):
+        r = int(short[0])
+        what = "empty line" if not lines[r].strip() else f"only {fields[r]} fields"
+        raise UserError(f"{path}: line {data_line(r)}: {what}, the column map needs {need} "
+                        f"(missing field; {len(short)} short row(s) in all)")
     cols = [c for f in FINGERS for c in cfg.columns.of(f)]
     raw = df.iloc[:, cols]
     values = raw.apply(pd.to_numeric, errors="coerce").to_numpy(float)
     bad = ~np.isfinite(values)
     if bad.any():
-        r, c = np.argwhere(bad)[0]
-        cell = raw.iat[r, c]
-        what = ("missing field" if pd.isna(cell) or (cell == "" and (raw.iloc[r] == "").all())
-                else f"non-numeric cell {cell!r}")
-        raise UserError(f"{path}: line {data_line(int(r))}: {what} in column {cols[c]} "
-                        f"({bad.sum()} bad cell(s) in all)")
+        order = np.argsort(cols)  # report the leftmost bad cell of the first bad row
+        r = int(np.flatnonzero(bad.any(axis=1))[0])
+        c = int(order[np.flatnonzero(bad[r, order])[0]])
+        raise UserError(f"{path}: line {data_line(r)}: non-numeric cell {raw.iat[r, c]!r} in "
+                        f"column {cols[c]} ({bad.sum()} bad cell(s) in all)")
     return values.reshape(-1, 2, 3) * UNITS[cfg.unit]
 
 
