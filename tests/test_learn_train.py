@@ -125,4 +125,52 @@ def test_cli_train_and_evaluate(ds_dir, tmp_path, capsys):
     assert "median err overall" in capsys.readouterr().out
     assert main(["train", "--data", str(tmp_path / "nothing"), "--out", str(tmp_path / "x")]) == 2
     assert "not a dataset directory" in capsys.readouterr().err
-    assert main(["evaluate", "--baseline", "geometric", "--data", str(ds_dir)]) == 2
+    assert main(["evaluate", "--baseline", "geometric"]) == 2
+    assert main(["evaluate", "--baseline", "geometric", "--data", str(ds_dir), "--out",
+                 str(tmp_path / "bl"), "--n-rotations", "2", "--no-plots"]) == 0
+    assert (tmp_path / "bl" / "metrics.json").exists()
+
+
+def test_selection_direction():
+    from vistac_learn.train import _selection_value
+
+    row = {"val_loss": 1.0, "val_index_error_median_pct": 5.0, "val_index_in_cone_pct": 40.0,
+           "val_thumb_in_cone_pct": 20.0}
+    assert _selection_value(row, "loss", ("index",)) == (1.0, False)
+    assert _selection_value(row, "error_median_pct", ("index",)) == (5.0, False)
+    assert _selection_value(row, "in_cone_pct", ("index", "thumb")) == (30.0, True)
+    with pytest.raises(UserError, match="not a metric"):
+        _selection_value(row, "bogus", ("index",))
+
+
+@pytest.mark.slow
+def test_sigkilled_process_resumes_identically(ds_dir, tmp_path):
+    """A real `vistac train` process killed with SIGKILL mid-epoch, then `--resume`d."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    argv = ["--data", str(ds_dir), "--model", "smallconv", "--epochs", "4", "--n-rotations",
+            "6", "--batch-size", "2", "--lr", "1e-3", "--device", "cpu", "--quiet",
+            "--checkpoint-every", "2", "--cache-dir", str(tmp_path / "cache")]
+    ref = tmp_path / "ref"
+    assert main(["train", *argv, "--out", str(ref)]) == 0
+    cut = tmp_path / "cut"
+    cmd = [sys.executable, "-m", "vistac_sim.cli", "train", *argv, "--out", str(cut)]
+    proc = subprocess.Popen(cmd)
+    last = cut / "checkpoints" / "last.pt"
+    deadline = time.time() + 120
+    while time.time() < deadline and proc.poll() is None:
+        if last.exists():
+            ck = torch.load(last, weights_only=False)
+            if ck["epoch"] >= 1 and ck["batch"] > 0:  # mid-epoch, after a finished epoch
+                break
+        time.sleep(0.05)
+    assert proc.poll() is None, "run finished before it could be killed"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert len(_rows(cut)) < 4
+    assert main(["train", *argv, "--out", str(cut), "--resume"]) == 0
+    _same_metrics(ref, cut, atol=1e-7)

@@ -221,8 +221,8 @@ def add_command(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--split", default="test", help="split to score (default test)")
     p.add_argument("--tta", action="store_true", help="average each configuration's rotations")
     p.add_argument("--checkpoint", default="best", choices=("best", "last"))
-    p.add_argument("--out", help="output folder (default <run>/eval/<split>; required with "
-                   "--baseline)")
+    p.add_argument("--out", help="output folder (default <run>/eval/<split>[-tta], with "
+                   "--baseline <data>/eval/geometric-<split>)")
     p.add_argument("--finger", default="index", choices=("index", "thumb", "both"),
                    help="baseline only: fingers to predict")
     p.add_argument("--rotations", default="fixed", choices=("fixed", "random", "none"),
@@ -237,12 +237,12 @@ def _handler(args: argparse.Namespace) -> int:
     if args.baseline:
         if args.run:
             raise UserError("give either --run or --baseline, not both")
-        if not args.data or not args.out:
-            raise UserError("--baseline needs --data and --out")
-        res = evaluate_baseline(args.data, args.out, args.split, args.finger,
+        if not args.data:
+            raise UserError("--baseline needs --data")
+        out = args.out or str(Path(args.data) / "eval" / f"geometric-{args.split}")
+        res = evaluate_baseline(args.data, out, args.split, args.finger,
                                 RotationCfg(args.rotations, args.n_rotations), args.tta,
                                 not args.no_plots, progress=True)
-        out = args.out
     else:
         if not args.run:
             raise UserError("give --run RUN (or --baseline geometric --data D --out DIR)")

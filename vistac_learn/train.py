@@ -45,7 +45,7 @@ from vistac_learn.scoring import predict, score_predictions
 from vistac_learn.variants import VARIANTS, VariantCfg, variant_images
 from vistac_sim.errors import UserError
 
-HIGHER_IS_BETTER = ("pct", "frac_correct", "in_cone", "correct")
+HIGHER_IS_BETTER = frozenset({"correct_y_pct", "in_cone_pct", "n_in_cone"})
 
 
 @dataclass
@@ -69,8 +69,10 @@ class TrainCfg:
         rotation_step: Degrees between fixed angles.
         margin: Finger-box margin, fraction of the image side.
         size: Input side; None takes the model's `input_size`.
-        select: Validation quantity choosing the best epoch: ``loss`` (MSE against the targets)
-            or a metric name of the index finger's (or, with ``both``, the mean over fingers).
+        select: Validation quantity choosing the best epoch: ``loss`` (MSE against the mean
+            unit labels) or a summary metric name of `metrics.cone_metrics` (e.g.
+            ``error_median_pct``, lower is better; ``in_cone_pct`` and ``correct_y_pct``, higher
+            is better), averaged over the fingers with ``both``.
         train_split: Split to train on.
         val_split: Split to select on.
         device: ``auto`` (CUDA when present, else CPU), ``cpu`` or ``cuda``.
@@ -165,7 +167,7 @@ def _selection_value(row: dict, select: str, fingers: tuple[str, ...]) -> tuple[
     if not all(k in row for k in keys):
         names = sorted({k.split("_", 2)[2] for k in row if k.startswith(f"val_{fingers[0]}_")})
         raise UserError(f"--select {select!r}: not a metric; choose loss or one of {names}")
-    higher = any(select.startswith(p) or p in select for p in HIGHER_IS_BETTER)
+    higher = select in HIGHER_IS_BETTER
     return float(np.mean([row[k] for k in keys])), higher
 
 
@@ -234,6 +236,9 @@ def train(
         raise UserError(f"{out}: already holds a run; pass --resume or choose another --out")
 
     device = resolve_device(cfg.device)
+    if device.type == "cuda":  # CPU kernels are deterministic already
+        torch.backends.cudnn.deterministic = True
+        torch.backends.cudnn.benchmark = False
     tables = open_dataset(cfg.data)
     fingers = fingers_of(cfg.finger)
     model = build_model(cfg)

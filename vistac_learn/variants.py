@@ -309,7 +309,9 @@ def variant_images(
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise UserError(f"{folder}: cannot create the variant cache ({exc})") from exc
+        raise UserError(
+            f"{folder}: cannot create the variant cache ({exc}); choose one with --cache-dir"
+        ) from exc
     n, r = angles.shape
     tmp = path.with_suffix(f".tmp{os.getpid()}.npy")
     arr = np.lib.format.open_memmap(
