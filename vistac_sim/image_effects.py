@@ -8,7 +8,9 @@ between ``update_scene`` and ``render``, so the model and the physics state are 
 nothing needs restoring:
 
 - overlay error: the pad and shaft geoms of each drawn finger are moved and turned about the
-  fingertip (the drawn finger misses where the finger really was);
+  fingertip (the drawn finger misses where the finger really was) and, like the study's fingers
+  painted into the photograph, drawn on top of everything without a shadow (moved towards the
+  camera along its view axis, which leaves their pixels where they are);
 - camera jitter: the GL camera is shifted, scaled, tilted off vertical and rolled;
 - lighting: the headlight keeps only its ambient part and a directional key light is added;
 - shadows: that key light casts shadows (needs a shadow map, created with the renderer only for
@@ -30,6 +32,9 @@ from typing import ClassVar
 import cv2
 import mujoco
 import numpy as np
+import shapely
+from shapely.geometry import LineString
+from shapely.ops import unary_union
 
 from vistac_sim.config import EffectsCfg, RenderCfg
 from vistac_sim.effects import Effect, Pipeline
@@ -37,6 +42,7 @@ from vistac_sim.render import TopView
 from vistac_sim.scene import FINGERS, SceneIds
 
 CAMERA_DISTANCE = 1.0  # m, the scene camera's height above the table (scene.py)
+OVERLAY_LIFT = 0.2  # m a drawn finger is moved towards the camera (in front of any object)
 _HEADLIGHT = (0.45, 0.55)  # ambient, diffuse of the scene's headlight (scene.py)
 
 
@@ -350,6 +356,8 @@ def _apply_view(scn: mujoco.MjvScene, model: mujoco.MjModel, data: mujoco.MjData
                 view: View) -> int:
     """Change the visual scene as `view` asks; returns the table's geom id."""
     table = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "table")
+    pos, right, up, fwd = view.frame()
+    lift = -OVERLAY_LIFT * fwd  # towards the camera: same pixels, in front of everything
     moves = {}
     for f, (dx, dy, da) in zip(FINGERS, view.overlay, strict=True):
         if dx or dy or da:
@@ -360,13 +368,13 @@ def _apply_view(scn: mujoco.MjvScene, model: mujoco.MjModel, data: mujoco.MjData
         g = scn.geoms[i]
         if g.objtype != mujoco.mjtObj.mjOBJ_GEOM:
             continue
-        if g.objid in moves:
+        if g.objid in moves:  # a drawn finger: painted over the scene, without a shadow
             pivot, rot, shift = moves[g.objid]
-            g.pos[:] = pivot + rot @ (np.asarray(g.pos, float) - pivot) + shift
+            g.pos[:] = pivot + rot @ (np.asarray(g.pos, float) - pivot) + shift + lift
             g.mat[:] = rot @ np.asarray(g.mat, float)
+            g.castshadow = 0
         elif g.objid == table:
             g.rgba[:3] = view.table_rgb
-    pos, right, up, fwd = view.frame()
     half = view.image_size / view.px_per_m / 2
     for cam in scn.camera:  # both eyes at the same place: a mono orthographic view
         cam.pos[:], cam.forward[:], cam.up[:] = pos, fwd, up
@@ -411,26 +419,31 @@ def texture_pattern(texture: TableTexture, size: int, px_per_m: float) -> np.nda
 
 def view_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
                view: View) -> np.ndarray:
-    """(2, 4) pixel boxes (x, y, w, h; top-left origin) of the fingers as `view` draws them.
+    """(2, 4) pixel boxes (x, y, w, h; top-left origin) of the visible part of each finger as
+    `view` draws it.
 
-    As `render.finger_boxes` (whose result it equals for the clean view), for any camera pose
-    and overlay error: each capsule is moved by the overlay, its two end points are projected
-    and widened by the radius in pixels (an orthographic view draws a sphere as a circle of the
-    same radius), and the box is clipped to the image.
+    As `render.finger_boxes` (which it equals for the clean view), for any camera pose and
+    overlay error: each capsule is moved by the overlay, its end points are projected, and the
+    segment between them widened by the radius in pixels is its outline (an orthographic view
+    draws a sphere as a circle of the same radius); the box bounds the union of a finger's
+    outlines clipped to the image. Under a tilted camera the top of a tall object may hide a
+    sliver of a (not overlaid) finger; the box still holds the finger's whole outline.
     """
+    s = view.px_per_m
+    image = shapely.box(0, 0, view.image_size, view.image_size)
     boxes = np.zeros((2, 4))
-    s, size = view.px_per_m, view.image_size
     for k, f in enumerate(FINGERS):
         dx, dy, da = view.overlay[k]
         pivot, rot = data.site_xpos[ids.site[f]], _rotz(da)
-        pts, rad = [], []
+        shapes = []
         for g in (ids.pad[f], ids.shaft[f]):
             axis = data.geom_xmat[g].reshape(3, 3)[:, 2] * model.geom_size[g, 1]
-            pts += [data.geom_xpos[g] + axis, data.geom_xpos[g] - axis]
-            rad += [model.geom_size[g, 0] * s] * 2
-        pts = pivot + (np.array(pts) - pivot) @ rot.T + np.array([dx, dy, 0.0])
-        uv, rad = view.project(pts), np.array(rad)[:, None]
-        (u0, v0), (u1, v1) = (uv - rad).min(0), (uv + rad).max(0)
-        u0, v0, u1, v1 = max(u0, 0.0), max(v0, 0.0), min(u1, size), min(v1, size)
-        boxes[k] = [u0, v0, max(u1 - u0, 0.0), max(v1 - v0, 0.0)]
+            ends = np.array([data.geom_xpos[g] + axis, data.geom_xpos[g] - axis])
+            ends = pivot + (ends - pivot) @ rot.T + np.array([dx, dy, 0.0])
+            shapes.append(LineString(view.project(ends)).buffer(model.geom_size[g, 0] * s,
+                                                                quad_segs=16))
+        visible = unary_union(shapes).intersection(image)
+        if not visible.is_empty:
+            u0, v0, u1, v1 = visible.bounds
+            boxes[k] = [u0, v0, u1 - u0, v1 - v0]
     return boxes
