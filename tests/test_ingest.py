@@ -423,3 +423,16 @@ def test_round_trip_generate_recordings_then_ingest(tmp_path):
         ia = np.arctan2(m[f"r_y_{f}_i"], -m[f"r_z_{f}_i"])
         ang = np.degrees(np.abs(np.angle(np.exp(1j * (ga - ia)))))
         assert np.median(ang) <= 1.0
+
+
+def test_windows_line_endings_and_float_cells(tmp_path):
+    from vistac_sim.ingest import read_recording
+
+    rng = np.random.default_rng(5)
+    series = press_series(PLATEAUS[3], rng)
+    path = write_csv(tmp_path / "a.csv", series)
+    lines = path.read_text().splitlines()
+    lines[3] = lines[3].replace(",", ", ")  # spaces after commas
+    path.write_bytes(("\r\n".join(lines) + "\r\n").encode())
+    np.testing.assert_allclose(read_recording(path, IngestCfg()), series / 1000)
+    np.testing.assert_allclose(read_recording(path, IngestCfg(unit="N")), series)
