@@ -91,3 +91,14 @@ def test_generate_skips_bad_meshes_in_a_folder_and_strict_aborts(tmp_path, bad_m
                "--workers", "1", "--no-progress", "--strict"])
     assert rc == 2
     assert not (tmp_path / "s" / "manifest.json").exists()
+
+
+def test_example_meshes_generate(tmp_path, monkeypatch):
+    from vistac_sim.assets import EXAMPLE_MESHES
+
+    monkeypatch.setenv("VISTAC_CACHE", str(tmp_path / "cache"))
+    out = tmp_path / "ds"
+    assert main(["generate", "--n", "4", "--repeats", "2", "--objects", str(EXAMPLE_MESHES),
+                 "--out", str(out), "--workers", "1", "--no-progress"]) == 0
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["skipped_meshes"] == [] and len(manifest["objects"]) == 2

@@ -14,3 +14,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     train.add_command(sub)
     evaluate.add_command(sub)
+    from vistac_learn import demo
+
+    demo.add_command(sub)
