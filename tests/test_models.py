@@ -236,11 +236,7 @@ def test_vistac_models_prints_the_table(capsys):
 
 
 def test_vistac_models_is_registered_in_the_cli(capsys):
-    from vistac_learn import cli
+    from vistac_sim.cli import main
 
-    parser = argparse.ArgumentParser(prog="vistac")
-    sub = parser.add_subparsers(dest="command")
-    cli.register(sub)
-    args = parser.parse_args(["models", "--in-channels", "3"])
-    assert args.func(args) == 0
+    assert main(["models", "--in-channels", "3"]) == 0
     assert "3-channel" in capsys.readouterr().out

@@ -1,33 +1,54 @@
-"""The `vistac` console command. Each package registers its own sub-commands."""
+"""The `vistac` console command.
+
+Sub-commands live in their own modules; only the chosen one is imported (so `vistac generate`
+does not pay for importing torch), while `vistac --help` lists them all.
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 
 from vistac_sim.errors import UserError
 
+# name -> (module, function adding its parser, one line of help)
+COMMANDS: dict[str, tuple[str, str, str]] = {
+    "generate": ("vistac_sim.commands", "add_generate",
+                 "simulate presses and write a visuo-tactile dataset"),
+    "ingest": ("vistac_sim.ingest", "add_ingest_command",
+               "turn RH8D/FTS-3 recordings and their images into a dataset"),
+    "models": ("vistac_learn.models", "add_command",
+               "list the model zoo with parameters and multiply-accumulates"),
+    "train": ("vistac_learn.train", "add_command", "train a model on a dataset"),
+    "evaluate": ("vistac_learn.evaluate", "add_command",
+                 "score a run or a baseline with the study's metrics"),
+    "demo": ("vistac_learn.demo", "add_command",
+             "generate, train, evaluate and report on a small default"),
+}
 
-def build_parser() -> argparse.ArgumentParser:
-    """Build the top-level parser with the sub-commands of both packages."""
-    from vistac_learn import cli as learn_cli
-    from vistac_sim import commands as sim_commands
 
+def build_parser(argv: list[str]) -> argparse.ArgumentParser:
+    """The top-level parser; the full options of the command named in `argv` are loaded."""
     parser = argparse.ArgumentParser(
         prog="vistac",
         description="Visuo-tactile datasets from MuJoCo (vistac_sim) and learning on them "
-        "(vistac_learn).",
+        "(vistac_learn). `vistac COMMAND --help` shows a command's options.",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    sim_commands.register(sub)
-    learn_cli.register(sub)
+    chosen = next((a for a in argv if not a.startswith("-")), None)
+    for name, (module, function, help_text) in COMMANDS.items():
+        if name == chosen:
+            getattr(importlib.import_module(module), function)(sub)
+        else:
+            sub.add_parser(name, help=help_text)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `vistac` command."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_parser(argv).parse_args(argv)
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:

@@ -1,4 +1,4 @@
-"""Sub-commands of vistac_sim, registered into the `vistac` command."""
+"""`vistac generate`: its options and the config tree they fill in."""
 
 from __future__ import annotations
 
@@ -10,15 +10,8 @@ from vistac_sim.effects import build_pipeline
 from vistac_sim.presets import PRESETS, resolve
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    """Add the simulation sub-commands (generate, ...) to the parser."""
-    _add_generate(sub)
-    from vistac_sim.ingest import add_ingest_command
-
-    add_ingest_command(sub)
-
-
-def _add_generate(sub: argparse._SubParsersAction) -> None:
+def add_generate(sub: argparse._SubParsersAction) -> None:
+    """Register `vistac generate`."""
     d = GenerateCfg()
     p = sub.add_parser(
         "generate",
