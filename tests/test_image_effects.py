@@ -53,7 +53,7 @@ def seg_boxes(scene: ObjectScene, seg: np.ndarray) -> np.ndarray:
     """(2, 4) pixel boxes of each finger's pixels in a segmentation image."""
     out = np.zeros((2, 4))
     for k, f in enumerate(FINGERS):
-        mask = (seg[..., 1] == mujoco.mjtObj.mjOBJ_GEOM) & np.isin(
+        mask = (seg[..., 1] == ie.GEOM) & np.isin(
             seg[..., 0], [scene.ids.pad[f], scene.ids.shaft[f]])
         ys, xs = np.nonzero(mask)
         out[k] = [xs.min(), ys.min(), xs.max() + 1 - xs.min(), ys.max() + 1 - ys.min()]
@@ -62,7 +62,7 @@ def seg_boxes(scene: ObjectScene, seg: np.ndarray) -> np.ndarray:
 
 def table_mask(scene: ObjectScene, seg: np.ndarray) -> np.ndarray:
     table = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_GEOM, "table")
-    return (seg[..., 1] == mujoco.mjtObj.mjOBJ_GEOM) & (seg[..., 0] == table)
+    return (seg[..., 1] == ie.GEOM) & (seg[..., 0] == table)
 
 
 # ------------------------------------------------------------------------- the clean view

@@ -43,6 +43,7 @@ from vistac_sim.scene import FINGERS, SceneIds
 
 CAMERA_DISTANCE = 1.0  # m, the scene camera's height above the table (scene.py)
 OVERLAY_LIFT = 0.2  # m a drawn finger is moved towards the camera (in front of any object)
+GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)  # a plain int: comparing arrays with the enum is slow
 _HEADLIGHT = (0.45, 0.55)  # ambient, diffuse of the scene's headlight (scene.py)
 
 
@@ -337,7 +338,7 @@ def render_view(top: TopView, data: mujoco.MjData, view: View,
     rgb = r.render()
     if view.texture is not None:
         seg = _segmentation(r)
-        mask = (seg[..., 1] == mujoco.mjtObj.mjOBJ_GEOM) & (seg[..., 0] == table)
+        mask = (seg[..., 1] == GEOM) & (seg[..., 0] == table)
         gain = texture_pattern(view.texture, view.image_size, view.px_per_m)
         shaded = np.clip(rgb * np.where(mask, gain, 1.0)[..., None], 0, 255)
         rgb = np.rint(shaded).astype(np.uint8)
@@ -366,7 +367,7 @@ def _apply_view(scn: mujoco.MjvScene, model: mujoco.MjModel, data: mujoco.MjData
                 moves[g] = (pivot, _rotz(da), np.array([dx, dy, 0.0]))
     for i in range(scn.ngeom):
         g = scn.geoms[i]
-        if g.objtype != mujoco.mjtObj.mjOBJ_GEOM:
+        if g.objtype != GEOM:
             continue
         if g.objid in moves:  # a drawn finger: painted over the scene, without a shadow
             pivot, rot, shift = moves[g.objid]
