@@ -10,6 +10,7 @@ that MuJoCo silently reset can reach a dataset.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import mujoco
@@ -20,6 +21,12 @@ from vistac_sim.errors import RejectedSample
 from vistac_sim.geometry import yaw_quat
 from vistac_sim.grasp import Grasp
 from vistac_sim.scene import FINGERS, SceneIds
+
+
+_LOG = logging.getLogger("vistac_sim.mujoco")
+# MuJoCo would append its warnings to MUJOCO_LOG.TXT in the working directory; every solve checks
+# the warning counters and rejects the sample, so the text only goes to the log.
+mujoco.set_mju_user_warning(lambda msg: _LOG.debug("MuJoCo warning: %s", msg))
 
 
 @dataclass
