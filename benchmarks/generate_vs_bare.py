@@ -33,13 +33,13 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 def _bare_worker(args: tuple[int, int, str, int]) -> int:
     """One bare-loop process: `count` samples round-robin over the object library."""
-    import cv2
     import mujoco
     import numpy as np
 
     from vistac_sim.config import GenerateCfg
     from vistac_sim.errors import RejectedSample
     from vistac_sim.objects import build_object, procedural_library
+    from vistac_sim.render import encode_png
     from vistac_sim.sample import ObjectScene, solve
 
     worker, count, out, seed = args
@@ -68,9 +68,8 @@ def _bare_worker(args: tuple[int, int, str, int]) -> int:
         for c in range(d.ncon):
             mujoco.mj_contactForce(m, d, c, f6)
             total += f6[0]
-        rgb = scene.view.render(d)
-        ok, buf = cv2.imencode(".png", rgb[:, :, ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 1])
-        (folder / f"{worker}_{i:06d}.png").write_bytes(buf.tobytes())
+        png = encode_png(scene.view.render(d))  # the same encoder as generate's
+        (folder / f"{worker}_{i:06d}.png").write_bytes(png)
     return count
 
 

@@ -59,3 +59,14 @@ def test_tip_lands_where_world_to_pixel_says(pressed_scenes):
         u, v = world_to_pixel(tip, cfg.render).astype(int)
         if 0 <= u < cfg.render.image_size and 0 <= v < cfg.render.image_size:
             assert seg[v, u, 0] == scene.ids.pad["index"]
+
+
+def test_png_encoding_round_trips_exactly():
+    import cv2
+
+    from vistac_sim.render import encode_png
+
+    rgb = np.random.default_rng(0).integers(0, 256, (31, 17, 3), dtype=np.uint8)
+    back = cv2.imdecode(np.frombuffer(encode_png(rgb), np.uint8), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_array_equal(back[:, :, ::-1], rgb)
+    assert encode_png(rgb) == encode_png(rgb.copy())

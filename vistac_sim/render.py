@@ -6,7 +6,9 @@ World -> pixel (camera centred on the world origin, looking straight down):
 
 from __future__ import annotations
 
-import cv2
+import struct
+import zlib
+
 import mujoco
 import numpy as np
 import shapely
@@ -79,9 +81,21 @@ def finger_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
     return boxes
 
 
-def encode_png(rgb: np.ndarray) -> bytes:
-    """Fast, deterministic PNG encoding of an RGB image."""
-    ok, buf = cv2.imencode(".png", rgb[:, :, ::-1], [cv2.IMWRITE_PNG_COMPRESSION, 1])
-    if not ok:
-        raise RuntimeError("PNG encoding failed")
-    return buf.tobytes()
+def encode_png(rgb: np.ndarray, level: int = 1) -> bytes:
+    """Deterministic PNG bytes of an RGB image (8-bit, no filter, zlib `level`).
+
+    Written with zlib directly: about twice as fast as OpenCV's encoder on these images.
+    """
+    h, w, _ = rgb.shape
+    raw = np.zeros((h, w * 3 + 1), np.uint8)  # each row: filter byte 0, then RGB
+    raw[:, 1:] = rgb.reshape(h, -1)
+    return b"".join([
+        b"\x89PNG\r\n\x1a\n",
+        _png_chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)),
+        _png_chunk(b"IDAT", zlib.compress(raw.tobytes(), level)),
+        _png_chunk(b"IEND", b""),
+    ])
+
+
+def _png_chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
