@@ -1,11 +1,14 @@
 """Cost of the effect pipeline: `generate` with every effect disabled vs the pipeline bypassed,
 and the extra time of each preset (and of a few single effects and `--recordings`).
 
-"Bypassed" runs the same generation with the `Pipeline`'s stage methods replaced by constant
-no-ops (no stage lists are looked at, no effects can run): what `generate` cost before effects
-existed. Runs alternate between variants (round-robin, `--rounds` times) in this process with
-one worker, after one warm-up run of every variant (object cache, lazy imports); the median
-wall time is reported.
+"Bypassed" replaces the `Pipeline`'s stage methods by constant no-ops (no stage lists are looked
+at, no effects can run): what `generate` cost before effects existed. Two measurements:
+
+1. paired: `make_configuration` per configuration, disabled and bypassed in alternating order,
+   summed (load changes on a shared machine hit both alike);
+2. whole `generate` runs of each variant in this process with one worker, round-robin
+   `--rounds` times after one warm-up run of every variant (object cache, lazy imports); the
+   median wall time is reported.
 
     .venv/bin/python benchmarks/effects_cost.py --n 40 --rounds 3
 """
@@ -22,9 +25,10 @@ import time
 from pathlib import Path
 
 from vistac_sim.config import FingerPullCfg, Fts3Cfg, GenerateCfg, PlacementErrorCfg
-from vistac_sim.effects import Pipeline
-from vistac_sim.generate import generate
+from vistac_sim.effects import Pipeline, build_pipeline
+from vistac_sim.generate import generate, object_specs
 from vistac_sim.presets import resolve
+from vistac_sim.sample import SceneCache, make_configuration
 
 
 @contextlib.contextmanager
@@ -80,6 +84,31 @@ def timed_run(c: GenerateCfg, bypass: bool, root: Path) -> float:
     return wall
 
 
+def paired_overhead(n: int, seed: int, rounds: int) -> tuple[float, float]:
+    """Seconds of `make_configuration` over n configurations, all effects disabled vs bypassed,
+    alternating per configuration (so that load changes on a shared machine hit both alike)."""
+    c = GenerateCfg(n=n, seed=seed)
+    specs, _ = object_specs(c, seed)
+    scenes = SceneCache(specs, c, size=64)
+    pipeline = build_pipeline(c.effects)
+    total = {"disabled": 0.0, "bypassed": 0.0}
+    try:
+        for cid in range(n):  # warm-up: build every scene once
+            make_configuration(cid, seed, scenes, c, pipeline)
+        for r in range(rounds):
+            for cid in range(n):
+                order = ("disabled", "bypassed") if (cid + r) % 2 else ("bypassed", "disabled")
+                for name in order:
+                    ctx = bypassed_pipeline() if name == "bypassed" else contextlib.nullcontext()
+                    with ctx:
+                        t0 = time.perf_counter()
+                        make_configuration(cid, seed, scenes, c, pipeline)
+                        total[name] += time.perf_counter() - t0
+    finally:
+        scenes.close()
+    return total["disabled"], total["bypassed"]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=40, help="configurations per run")
@@ -92,6 +121,9 @@ def main() -> None:
     if args.only:
         runs = {k: v for k, v in runs.items() if k in args.only or k in ("bypassed",
                                                                           "all disabled")}
+    disabled, bypassed = paired_overhead(args.n, args.seed, args.rounds)
+    print(f"paired, per configuration ({args.rounds} x {args.n} configurations): all disabled "
+          f"{disabled:.2f} s, bypassed {bypassed:.2f} s, ratio {disabled / bypassed:.3f}\n")
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
         for c, bypass in runs.values():  # warm-up: object cache, lazy imports, renderers
