@@ -70,3 +70,21 @@ def test_png_encoding_round_trips_exactly():
     back = cv2.imdecode(np.frombuffer(encode_png(rgb), np.uint8), cv2.IMREAD_UNCHANGED)
     np.testing.assert_array_equal(back[:, :, ::-1], rgb)
     assert encode_png(rgb) == encode_png(rgb.copy())
+
+
+def test_clipped_box_matches_shapely():
+    import shapely
+    from shapely.geometry import LineString
+
+    from vistac_sim.render import capsule_outline, clipped_points
+
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        p0, p1 = rng.uniform(-60, 290, 2), rng.uniform(-60, 290, 2)
+        r = rng.uniform(1, 40)
+        ref = LineString([p0, p1]).buffer(r, quad_segs=64).intersection(shapely.box(0, 0, 227, 227))
+        pts = clipped_points(capsule_outline(p0, p1, r), 227)
+        if ref.is_empty:
+            assert len(pts) == 0
+            continue
+        np.testing.assert_allclose([*pts.min(0), *pts.max(0)], ref.bounds, atol=0.05)

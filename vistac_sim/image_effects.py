@@ -32,13 +32,10 @@ from typing import ClassVar
 import cv2
 import mujoco
 import numpy as np
-import shapely
-from shapely.geometry import LineString
-from shapely.ops import unary_union
 
 from vistac_sim.config import EffectsCfg, RenderCfg
 from vistac_sim.effects import Effect, Pipeline
-from vistac_sim.render import TopView
+from vistac_sim.render import TopView, boxes_from_outlines, finger_capsules
 from vistac_sim.scene import FINGERS, SceneIds
 
 CAMERA_DISTANCE = 1.0  # m, the scene camera's height above the table (scene.py)
@@ -431,20 +428,14 @@ def view_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
     sliver of a (not overlaid) finger; the box still holds the finger's whole outline.
     """
     s = view.px_per_m
-    image = shapely.box(0, 0, view.image_size, view.image_size)
-    boxes = np.zeros((2, 4))
-    for k, f in enumerate(FINGERS):
+    caps_px = []
+    for k, (f, caps) in enumerate(zip(FINGERS, finger_capsules(model, data, ids), strict=True)):
         dx, dy, da = view.overlay[k]
         pivot, rot = data.site_xpos[ids.site[f]], _rotz(da)
-        shapes = []
-        for g in (ids.pad[f], ids.shaft[f]):
-            axis = data.geom_xmat[g].reshape(3, 3)[:, 2] * model.geom_size[g, 1]
-            ends = np.array([data.geom_xpos[g] + axis, data.geom_xpos[g] - axis])
-            ends = pivot + (ends - pivot) @ rot.T + np.array([dx, dy, 0.0])
-            shapes.append(LineString(view.project(ends)).buffer(model.geom_size[g, 0] * s,
-                                                                quad_segs=16))
-        visible = unary_union(shapes).intersection(image)
-        if not visible.is_empty:
-            u0, v0, u1, v1 = visible.bounds
-            boxes[k] = [u0, v0, u1 - u0, v1 - v0]
-    return boxes
+        moved = []
+        for a, b, r in caps:
+            ends = pivot + (np.array([a, b]) - pivot) @ rot.T + np.array([dx, dy, 0.0])
+            p0, p1 = view.project(ends)
+            moved.append((p0, p1, r * s))
+        caps_px.append(moved)
+    return boxes_from_outlines(caps_px, view.image_size)

@@ -22,7 +22,6 @@ from vistac_sim.geometry import yaw_quat
 from vistac_sim.grasp import Grasp
 from vistac_sim.scene import FINGERS, SceneIds
 
-
 _LOG = logging.getLogger("vistac_sim.mujoco")
 # MuJoCo would append its warnings to MUJOCO_LOG.TXT in the working directory; every solve checks
 # the warning counters and rejects the sample, so the text only goes to the log.
@@ -40,6 +39,7 @@ class PressResult:
     tip: np.ndarray  # (2, 3) front-cap centre of each tip, world
     contact: np.ndarray  # (2, 3) force-weighted contact point, world
     penetration: np.ndarray  # (2,) deepest penetration, m
+    pad_contacts: tuple[np.ndarray, ...] = ()  # per finger: (m, 4) contact xyz, normal force
 
 
 class Press:
@@ -92,6 +92,7 @@ class Press:
         out = {k: np.zeros((2, 3)) for k in ("fw", "fc", "tip", "pos")}
         rot = np.zeros((2, 3, 3))
         pen = np.zeros(2)
+        pad_contacts = []
         for k, f in enumerate(FINGERS):
             if np.any((g1 == ids.shaft[f]) | (g2 == ids.shaft[f])):
                 raise RejectedSample("shaft_contact", f"{f} finger touches behind the pad")
@@ -114,6 +115,7 @@ class Press:
                 weights[j] = self._f6[0]
             w = weights / weights.sum() if weights.sum() > 0 else np.full(len(pad), 1 / len(pad))
             out["pos"][k] = w @ d.contact.pos[pad]
+            pad_contacts.append(np.column_stack([d.contact.pos[pad], weights]))
             rot[k] = d.site_xmat[ids.site[f]].reshape(3, 3)
             adr = ids.sensor_adr[f]
             # The netforce contact sensor reports the force of geom1 (the pad) on geom2 (the
@@ -121,7 +123,8 @@ class Press:
             out["fc"][k] = -rot[k].T @ d.sensordata[adr:adr + 3]
             out["tip"][k] = d.xpos[m.geom_bodyid[ids.pad[f]]]
         force_sensor = np.einsum("kji,kj->ki", rot, out["fw"])
-        return PressResult(out["fw"], force_sensor, out["fc"], rot, out["tip"], out["pos"], pen)
+        return PressResult(out["fw"], force_sensor, out["fc"], rot, out["tip"], out["pos"], pen,
+                           tuple(pad_contacts))
 
 
 def _warnings(d: mujoco.MjData) -> str:

@@ -11,7 +11,6 @@ from __future__ import annotations
 from collections import Counter, OrderedDict
 from dataclasses import dataclass
 
-import mujoco
 import numpy as np
 
 from vistac_sim.config import GenerateCfg
@@ -59,26 +58,23 @@ class ObjectScene:
         pushes along there. Several contacts of one pad are averaged with their normal-force
         weights.
         """
-        d, ids, h = self.press.data, self.ids, self.cfg.hand
-        r2 = rot2(grasp.object_yaw)
-        origin = np.r_[grasp.object_xy, 0.0]
+        # World <-> object frame: rotation about z by the object's yaw, then its offset.
+        rot = np.eye(3)
+        rot[:2, :2] = rot2(grasp.object_yaw)
+        origin = np.array([grasp.object_xy[0], grasp.object_xy[1], 0.0])
+        reach = 2 * self.cfg.hand.tip_half_length
         out = np.zeros((2, 3))
-        g1, g2 = d.contact.geom1[: d.ncon], d.contact.geom2[: d.ncon]
-        f6 = np.zeros(6)
-        for k, f in enumerate(FINGERS):
-            axis = np.r_[grasp.approach[k], 0.0]
+        for k in range(2):
+            axis = np.array([grasp.approach[k, 0], grasp.approach[k, 1], 0.0])
             tip = res.tip[k]
-            for c in np.flatnonzero((g1 == ids.pad[f]) | (g2 == ids.pad[f])):
-                p = d.contact.pos[c] - origin
-                p_obj = np.r_[r2.T @ p[:2], p[2]]
-                q_obj, face_n = self.triangles.closest(p_obj)
+            for *pos, weight in res.pad_contacts[k]:
+                q_obj, face_n = self.triangles.closest(rot.T @ (np.asarray(pos) - origin))
                 if np.all(face_n @ face_n[0] > _FLAT_COS):
-                    n = np.r_[r2 @ face_n[0, :2], face_n[0, 2]]
+                    n = rot @ face_n[0]
                 else:
-                    q = np.r_[r2 @ q_obj[:2], q_obj[2]] + origin
-                    n = unit(closest_on_segment(q, tip - axis * 2 * h.tip_half_length, tip) - q)
-                mujoco.mj_contactForce(self.model, d, int(c), f6)
-                out[k] += max(f6[0], 1e-12) * n
+                    q = rot @ q_obj + origin
+                    n = unit(closest_on_segment(q, tip - axis * reach, tip) - q)
+                out[k] += max(weight, 1e-12) * n
         return unit(out)
 
 
