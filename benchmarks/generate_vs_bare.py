@@ -37,24 +37,16 @@ def _bare_worker(args: tuple[int, int, str, int]) -> int:
     import numpy as np
 
     from vistac_sim.config import GenerateCfg
-    from vistac_sim.errors import RejectedSample
     from vistac_sim.objects import build_object, procedural_library
     from vistac_sim.render import encode_png
-    from vistac_sim.sample import ObjectScene, solve
+    from vistac_sim.sample import ObjectScene, draw_grasp
 
     worker, count, out, seed = args
     cfg = GenerateCfg(seed=seed)
     scenes, grasps = [], []
     for spec in procedural_library(cfg.objects, seed):
         scene = ObjectScene(build_object(spec, cfg.hand.height), cfg)
-        rng = np.random.default_rng(0)
-        while True:  # one valid grasp per object, found before the loop
-            try:
-                grasp = scene.sampler.sample(rng)
-                solve(scene, grasp, cfg)
-                break
-            except RejectedSample:
-                continue
+        grasp = draw_grasp(scene, np.random.default_rng(0), cfg)[0]  # found before the loop
         scenes.append(scene)
         grasps.append(grasp)
     f6 = np.zeros(6)

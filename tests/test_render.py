@@ -5,9 +5,8 @@ import pytest
 
 from vistac_sim import objects
 from vistac_sim.config import GenerateCfg
-from vistac_sim.errors import RejectedSample
 from vistac_sim.render import finger_boxes, world_to_pixel
-from vistac_sim.sample import ObjectScene, solve
+from vistac_sim.sample import ObjectScene, draw_grasp
 
 
 @pytest.fixture(scope="module")
@@ -16,14 +15,7 @@ def pressed_scenes():
     out = []
     for spec in objects.procedural_library(cfg.objects, 3)[:4]:
         scene = ObjectScene(objects.build_object(spec, cfg.hand.height), cfg)
-        rng = np.random.default_rng(1)
-        while True:
-            try:
-                grasp = scene.sampler.sample(rng)
-                solve(scene, grasp, cfg)
-                break
-            except RejectedSample:
-                continue
+        grasp = draw_grasp(scene, np.random.default_rng(1), cfg)[0]
         out.append((scene, grasp, scene.view.render(scene.press.data),
                     scene.view.render(scene.press.data, segmentation=True)))
     yield cfg, out

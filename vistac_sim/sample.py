@@ -162,6 +162,27 @@ def solve(scene: ObjectScene, grasp: Grasp, cfg: GenerateCfg) -> tuple[PressResu
     return res, normal
 
 
+def draw_grasp(scene: ObjectScene, rng: np.random.Generator,
+               cfg: GenerateCfg) -> tuple[Grasp, PressResult, np.ndarray, Counter]:
+    """Draw grasps until one passes every check.
+
+    Returns:
+        The grasp, its press, the sensor-frame surface normals and the rejected draws by reason.
+
+    Raises:
+        RuntimeError: when `max_redraws` draws in a row were rejected (names the object).
+    """
+    redraws: Counter = Counter()
+    for _ in range(cfg.grasp.max_redraws):
+        try:
+            grasp = scene.sampler.sample(rng)
+            return (grasp, *solve(scene, grasp, cfg), redraws)
+        except RejectedSample as exc:
+            redraws[exc.reason] += 1
+    raise RuntimeError(f"object {scene.obj.object_id} gave no valid grasp in "
+                       f"{cfg.grasp.max_redraws} draws ({dict(redraws)})")
+
+
 def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: GenerateCfg,
                        pipeline: Pipeline) -> Configuration:
     """Draw, press, check, label and render configuration `config_id`.
@@ -172,17 +193,10 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     rng = config_streams(seed, config_id)
     idx = object_index(seed, config_id, len(scenes.specs))
     scene = scenes.get(idx)
-    redraws: Counter = Counter()
-    for _ in range(cfg.grasp.max_redraws):
-        try:
-            grasp = scene.sampler.sample(rng["grasp"])
-            res, normal = solve(scene, grasp, cfg)
-            break
-        except RejectedSample as exc:
-            redraws[exc.reason] += 1
-    else:
-        raise RuntimeError(f"configuration {config_id}: object {scene.obj.object_id} gave no "
-                           f"valid grasp in {cfg.grasp.max_redraws} draws ({dict(redraws)})")
+    try:
+        grasp, res, normal, redraws = draw_grasp(scene, rng["grasp"], cfg)
+    except RuntimeError as exc:
+        raise RuntimeError(f"configuration {config_id}: {exc}") from None
     if pipeline.image:  # the image, its boxes and camera columns follow the sampled view
         rgb, boxes, view_cols = render_with_effects(scene.view, scene.press.data, pipeline,
                                                     cfg.render, rng["image_effects"])
