@@ -205,9 +205,12 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
         rgb, view_cols = scene.view.render(scene.press.data), {}
     png = encode_png(rgb)
     clean = res.force_sensor
+    fallbacks = 0
     if pipeline.changes_physics:
-        forces = np.stack([_solve_repeat(scene, pipeline, grasp, clean, rng["scene_effects"])
-                           for _ in range(cfg.repeats)])
+        solved = [_solve_repeat(scene, pipeline, grasp, rng["scene_effects"])
+                  for _ in range(cfg.repeats)]
+        fallbacks = sum(f is None for f in solved)
+        forces = np.stack([clean if f is None else f for f in solved])
     else:
         forces = np.broadcast_to(clean, (cfg.repeats, 2, 3)).copy()
     forces = pipeline.apply_force(forces, rng["force_effects"])
@@ -219,6 +222,7 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
         recording = recording_csv(session) if cfg.recording.write else None
     labels = unit_labels(forces)
     row = _config_row(config_id, scene.obj, grasp, res, clean, normal, boxes, cfg)
+    row["scene_effect_fallbacks"] = fallbacks  # repeats that kept the unperturbed force
     row["redraws"] = int(sum(redraws.values()))
     row["redraw_reasons"] = ",".join(f"{k}:{v}" for k, v in sorted(redraws.items()))
     row |= view_cols
@@ -230,19 +234,20 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     )
 
 
-def _solve_repeat(scene: ObjectScene, pipeline: Pipeline, grasp: Grasp, clean: np.ndarray,
-                  rng: np.random.Generator) -> np.ndarray:
+def _solve_repeat(scene: ObjectScene, pipeline: Pipeline, grasp: Grasp,
+                  rng: np.random.Generator) -> np.ndarray | None:
     """(2, 3) sensor-frame force of one repeat under the scene effects.
 
     A perturbed grasp that the press rejects is drawn again, up to `SCENE_EFFECT_TRIES` times;
-    then the repeat keeps the unperturbed force `clean`.
+    None if every try was rejected (the caller keeps the unperturbed force and counts it in the
+    `scene_effect_fallbacks` column).
     """
     for _ in range(SCENE_EFFECT_TRIES):
         try:
             return scene.press.run(pipeline.apply_scene(grasp, rng)).force_sensor
         except RejectedSample:
             continue
-    return clean
+    return None
 
 
 def _config_row(config_id, obj: SceneObject, grasp: Grasp, res: PressResult, clean, normal,
