@@ -103,6 +103,7 @@ def run_protocol(args: argparse.Namespace) -> dict:
             "label": info.get("display", name), "model": name, "kind": "model",
             "metrics": res["metrics"]["index"],
             "train_s_per_epoch": float(np.mean([float(r["train_s"]) for r in rows])),
+            "train_s_epochs": [float(r["train_s"]) for r in rows],
             "epoch_s_with_val": float(np.mean([float(r["epoch_s"]) for r in rows])),
             "images_per_s": res["images_per_s"], "best_epoch": res["epoch"],
             "epochs": len(rows), "params": info["params"], "macs": info["macs"],
@@ -139,7 +140,8 @@ def run_protocol(args: argparse.Namespace) -> dict:
             f"{args.repeats} presses, noise {args.noise}, {args.epochs} epochs, batch "
             f"{args.batch_size}, lr {args.lr}, weight decay {args.weight_decay}, seed "
             f"{args.seed}; CPU ({machine['cpu_count']} cores, {machine['torch_threads']} torch "
-            "threads). Test metrics of the validation-selected epoch; errors and inaccuracies "
+            "threads; timings depend on what else runs on the machine). Test metrics of the "
+            "validation-selected epoch; errors and inaccuracies "
             "in %, angles in degrees. Train s/epoch excludes validation; inference img/s is "
             "batched (64) forward passes on the test pairs.")
     result["table"] = table
