@@ -42,7 +42,7 @@ class TriangleIndex:
         e2 = self.tri[:, 2] - self.tri[:, 0]
         self.face_normals = unit(np.cross(e1, e2))
 
-    def closest(self, point: np.ndarray, radius: float = 0.005,
+    def closest(self, point: np.ndarray, radius: float = 0.002,
                 tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
         """Closest point on the mesh to `point`, and the normals of all faces touching it.
 

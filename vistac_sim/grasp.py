@@ -11,8 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
+import shapely
 from shapely.geometry import LineString, Polygon
-from shapely.prepared import prep
 
 from vistac_sim.config import GenerateCfg
 from vistac_sim.errors import RejectedSample
@@ -48,7 +48,7 @@ class OutlineSampler:
         self.section = section
         self.cfg = cfg
         self.p0, self.p1, self.normals, self.cum = boundary_arrays(section)
-        self.prepared = prep(section)
+        shapely.prepare(section)
 
     def _points(self, rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray]:
         s = rng.uniform(0, self.cum[-1], k)
@@ -62,13 +62,23 @@ class OutlineSampler:
         ang = rng.uniform(-spread, spread, len(normals))
         c, s = np.cos(ang), np.sin(ang)
         inward = -normals
-        return np.c_[c * inward[:, 0] - s * inward[:, 1], s * inward[:, 0] + c * inward[:, 1]]
+        return np.stack([c * inward[:, 0] - s * inward[:, 1], s * inward[:, 0] + c * inward[:, 1]],
+                        axis=1)
 
-    def finger_footprint(self, start: np.ndarray, approach: np.ndarray) -> Polygon:
-        """Top-view footprint of a whole finger (tip + shaft) with its front cap at `start`."""
+    def finger_axis(self, start: np.ndarray, approach: np.ndarray) -> LineString:
+        """Top-view axis of a whole finger (tip + shaft) with its front cap centre at `start`.
+
+        The finger's footprint is this segment widened by the tip radius (the widest part).
+        """
         h = self.cfg.hand
         back = start - approach * (2 * h.tip_half_length + h.shaft_length + h.shaft_radius)
-        return LineString([start, back]).buffer(h.tip_radius, quad_segs=6)
+        return LineString([start, back])
+
+    def _inside(self, axis: LineString) -> bool:
+        return bool(shapely.dwithin(self.section, axis, self.cfg.hand.tip_radius))
+
+    def _overlap(self, a: LineString, b: LineString) -> bool:
+        return bool(shapely.dwithin(a, b, 2 * self.cfg.hand.tip_radius))
 
     def check(self, local: Grasp) -> None:
         """Check a grasp given in the object frame (yaw 0, at the origin).
@@ -79,11 +89,11 @@ class OutlineSampler:
         """
         h = self.cfg.hand
         start = local.start(h.tip_radius, h.standoff)
-        feet = [self.finger_footprint(start[k], local.approach[k]) for k in range(2)]
-        for name, foot in zip(("index", "thumb"), feet, strict=True):
-            if self.prepared.intersects(foot):
+        axes = [self.finger_axis(start[k], local.approach[k]) for k in range(2)]
+        for name, axis in zip(("index", "thumb"), axes, strict=True):
+            if self._inside(axis):
                 raise RejectedSample("unreachable", f"{name} finger would start inside the object")
-        if feet[0].intersects(feet[1]):
+        if self._overlap(*axes):
             raise RejectedSample("fingers_overlap", "thumb and index would overlap")
 
     def sample(self, rng: np.random.Generator, n_thumb_candidates: int = 24) -> Grasp:
@@ -99,8 +109,8 @@ class OutlineSampler:
         p_i, n_i = self._points(rng, 1)
         a_i = self._approach(rng, n_i)
         s_i = p_i + n_i * h.tip_radius - a_i * h.standoff
-        foot_i = self.finger_footprint(s_i[0], a_i[0])
-        if self.prepared.intersects(foot_i):
+        axis_i = self.finger_axis(s_i[0], a_i[0])
+        if self._inside(axis_i):
             raise RejectedSample("unreachable", "index finger would start inside the object")
         p_t, n_t = self._points(rng, n_thumb_candidates)
         a_t = self._approach(rng, n_t)
@@ -111,14 +121,14 @@ class OutlineSampler:
         reason = RejectedSample("unreachable", "thumb would start inside the object")
         for k in np.flatnonzero(ok):
             s_t = p_t[k] + n_t[k] * h.tip_radius - a_t[k] * h.standoff
-            foot_t = self.finger_footprint(s_t, a_t[k])
-            if self.prepared.intersects(foot_t):
+            axis_t = self.finger_axis(s_t, a_t[k])
+            if self._inside(axis_t):
                 continue
-            if foot_t.intersects(foot_i):
+            if self._overlap(axis_t, axis_i):
                 reason = RejectedSample("fingers_overlap", "thumb and index would overlap")
                 continue
-            local = Grasp(xy, yaw, np.r_[p_i, p_t[k:k + 1]], np.r_[n_i, n_t[k:k + 1]],
-                          np.r_[a_i, a_t[k:k + 1]])
+            local = Grasp(xy, yaw, np.concatenate([p_i, p_t[k:k + 1]]),
+                          np.concatenate([n_i, n_t[k:k + 1]]), np.concatenate([a_i, a_t[k:k + 1]]))
             return to_world(local)
         raise reason
 

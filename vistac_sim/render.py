@@ -72,8 +72,7 @@ def boxes_from_outlines(capsules_px, image_size: int) -> np.ndarray:
     the image; an invisible group gets a zero box."""
     boxes = np.zeros((len(capsules_px), 4))
     for k, caps in enumerate(capsules_px):
-        pts = np.vstack([clipped_points(capsule_outline(p0, p1, r), image_size)
-                         for p0, p1, r in caps])
+        pts = np.vstack([clipped_capsule_points(p0, p1, r, image_size) for p0, p1, r in caps])
         if len(pts):
             lo, hi = pts.min(0), pts.max(0)
             boxes[k] = [lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1]]
@@ -85,8 +84,7 @@ def finger_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
     """(2, 4) pixel boxes (x, y, w, h; top-left origin) of the visible part of each finger.
 
     A finger's top-view outline is the union of its capsules (pad and shaft), each a segment
-    widened by its radius; the box is that outline clipped to the image. Capsules are drawn as
-    polygons with 128 segments per circle: within 0.01 px of the exact box.
+    widened by its radius; the box is that outline clipped to the image, computed exactly.
     """
     s = px_per_m(cfg)
     caps = [[(world_to_pixel(a[:2], cfg), world_to_pixel(b[:2], cfg), r * s) for a, b, r in f]
@@ -94,41 +92,53 @@ def finger_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
     return boxes_from_outlines(caps, cfg.image_size)
 
 
-def capsule_outline(p0: np.ndarray, p1: np.ndarray, radius: float, n: int = 65) -> np.ndarray:
-    """Convex polygon (counter-clockwise, (2n, 2)) of a 2-D capsule around segment p0-p1."""
-    d = p1 - p0
-    base = np.arctan2(d[1], d[0]) if np.any(d) else 0.0
-    t = np.linspace(-np.pi / 2, np.pi / 2, n)
-    cap1 = p1 + radius * np.c_[np.cos(base + t), np.sin(base + t)]
-    cap0 = p0 + radius * np.c_[np.cos(base + np.pi + t), np.sin(base + np.pi + t)]
-    return np.vstack([cap1, cap0])
+_DIRS = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
 
 
-def clipped_points(poly: np.ndarray, size: float) -> np.ndarray:
-    """Vertices of a convex polygon clipped to the square [0, size]^2 (for its bounding box).
+def clipped_capsule_points(p0: np.ndarray, p1: np.ndarray, radius: float,
+                           size: float) -> np.ndarray:
+    """Points of (capsule p0-p1 widened by `radius`) within [0, size]^2 whose box is exactly the
+    box of that intersection (empty if they do not meet).
 
-    The clipped polygon's vertices are the polygon's vertices inside the square, its edges'
-    crossings of the square's sides that lie on the square, and the square's corners inside it.
+    The extreme points of a convex set clipped to a square are extreme points of the set, points
+    where its boundary crosses the square's sides, or corners of the square. Candidates: the
+    axis-extreme points of both end circles, every crossing of the square's side lines with both
+    circles and both flat sides, and the four corners; kept if they lie in the capsule and in the
+    square (points inside both do not widen the box, so over-collecting is harmless).
     """
-    inside = np.all((poly >= 0) & (poly <= size), axis=1)
-    out = [poly[inside]]
-    a, b = poly, np.roll(poly, -1, axis=0)
+    p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
+    r = float(radius)
+    extremes = np.concatenate([p0 + r * _DIRS, p1 + r * _DIRS])
+    lo, hi = extremes.min(0), extremes.max(0)
+    if lo.min() >= 0 and hi.max() <= size:  # wholly inside: the capsule's own extremes
+        return extremes
+    if lo.max() > size or hi.min() < 0:  # wholly outside
+        return np.empty((0, 2))
+    eps = 1e-9 * max(size, 1.0)
+    lines = np.array([0.0, size])
+    centres = np.array([p0, p1])
+    d = p1 - p0
+    length = np.hypot(d[0], d[1])
+    normal = np.array([-d[1], d[0]]) / length if length > 0 else np.zeros(2)
+    sides = np.array([p0 + r * normal, p0 - r * normal])
+    cand = [extremes, np.array([[0, 0], [size, 0], [0, size], [size, size]], float)]
     for axis in (0, 1):
-        for line in (0.0, size):
-            da, db = a[:, axis] - line, b[:, axis] - line
-            cross = (da * db) < 0
-            if cross.any():
-                t = da[cross] / (da[cross] - db[cross])
-                p = a[cross] + (b[cross] - a[cross]) * t[:, None]
-                p[:, axis] = line
-                other = p[:, 1 - axis]
-                out.append(p[(other >= 0) & (other <= size)])
-    corners = np.array([[0, 0], [size, 0], [size, size], [0, size]], float)
-    edge = b - a
-    rel = corners[:, None, :] - a[None]
-    crs = edge[None, :, 0] * rel[..., 1] - edge[None, :, 1] * rel[..., 0]
-    out.append(corners[np.all(crs >= 0, axis=1)])
-    return np.vstack(out)
+        other = 1 - axis
+        off = lines[None, :] - centres[:, axis:axis + 1]  # (centre, line)
+        h = np.sqrt(np.maximum(r * r - off**2, 0.0))
+        pts = np.empty((2, 2, 2, 2))  # centre, line, sign, xy
+        pts[..., axis] = lines[None, :, None]
+        pts[..., other] = centres[:, other, None, None] + h[..., None] * np.array([1.0, -1.0])
+        cand.append(pts.reshape(-1, 2))
+        if d[axis] != 0:
+            t = np.clip((lines[None, :] - sides[:, axis:axis + 1]) / d[axis], 0.0, 1.0)
+            cand.append((sides[:, None, :] + t[..., None] * d).reshape(-1, 2))
+    pts = np.concatenate(cand)
+    t = np.clip(((pts - p0) @ d) / max(d @ d, 1e-300), 0.0, 1.0)
+    gap = pts - p0 - t[:, None] * d
+    keep = (np.all((pts >= -eps) & (pts <= size + eps), axis=1)
+            & ((gap**2).sum(1) <= (r + eps) ** 2))
+    return np.clip(pts[keep], 0.0, size)
 
 
 def encode_png(rgb: np.ndarray, level: int = 1) -> bytes:

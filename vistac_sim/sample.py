@@ -113,15 +113,26 @@ class Configuration:
     recording: bytes | None = None  # RH8D/FTS-3 CSV of the session (only with --recordings)
 
 
-def config_streams(seed: int, config_id: int) -> dict[str, np.random.Generator]:
-    """Independent generators of one configuration, derived from (seed, config_id) only."""
-    children = np.random.SeedSequence([seed, config_id]).spawn(len(STREAMS))
-    return {name: np.random.default_rng(c) for name, c in zip(STREAMS, children, strict=True)}
+class ConfigStreams:
+    """Independent generators of one configuration, derived from (seed, config_id) only.
+
+    Each stream is made on first use, so the stream of a disabled effect costs nothing.
+    """
+
+    def __init__(self, seed: int, config_id: int):
+        self.key = (seed, config_id)
+        self._made: dict[str, np.random.Generator] = {}
+
+    def __getitem__(self, name: str) -> np.random.Generator:
+        if name not in self._made:
+            self._made[name] = np.random.default_rng([*self.key, STREAMS.index(name), 0x5EED])
+        return self._made[name]
 
 
 def object_index(seed: int, config_id: int, n_objects: int) -> int:
     """Which object of the library configuration `config_id` uses."""
-    return int(np.random.default_rng([seed, config_id, 7]).integers(n_objects))
+    return int(np.random.SeedSequence([seed, config_id, 7]).generate_state(1, np.uint64)[0]
+               % n_objects)
 
 
 def check_physics(force: np.ndarray, normal: np.ndarray, friction: float, tol_deg: float) -> None:
@@ -190,7 +201,7 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     Raises:
         RuntimeError: when `max_redraws` draws in a row were rejected (names the object).
     """
-    rng = config_streams(seed, config_id)
+    rng = ConfigStreams(seed, config_id)
     idx = object_index(seed, config_id, len(scenes.specs))
     scene = scenes.get(idx)
     try:
