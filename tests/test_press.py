@@ -116,3 +116,25 @@ def test_hard_case_expectations():
     # 85 degrees off the normal: the frictionless force is the normal, 85 deg from the pad's z.
     assert np.degrees(np.arctan2(-grazing.labels[0, 0], -grazing.labels[0, 1])) == pytest.approx(
         85, abs=0.5)
+
+
+def test_noise_only_repeats_share_one_physics_solve(monkeypatch):
+    from vistac_sim.effects import build_pipeline
+    from vistac_sim.press import Press
+    from vistac_sim.sample import SceneCache, make_configuration
+
+    cfg = GenerateCfg()
+    cfg.effects.noise = 0.05
+    calls = []
+    run = Press.run
+    monkeypatch.setattr(Press, "run", lambda self, grasp: calls.append(1) or run(self, grasp))
+    scenes = SceneCache(objects.procedural_library(cfg.objects, 0)[:4], cfg)
+    sampler_reasons = {"unreachable", "no_opposing_thumb", "fingers_overlap"}
+    for cid in range(6):
+        calls.clear()
+        c = make_configuration(cid, 0, scenes, cfg, build_pipeline(cfg.effects))
+        reasons = dict(item.split(":") for item in filter(None, c.row["redraw_reasons"].split(",")))
+        solved_rejects = sum(int(v) for k, v in reasons.items() if k not in sampler_reasons)
+        assert len(calls) == 1 + solved_rejects  # one solve for all six noisy repeats
+        assert len({p["force_index_y"] for p in c.presses}) == cfg.repeats
+    scenes.close()
