@@ -7,6 +7,7 @@ full-resolution mesh normal) and reports the outcome. The suite runs in the test
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -114,12 +115,16 @@ def _large(cfg):
 
 @case("mesh_100k_faces")
 def _dense_mesh(cfg):
+    obj = _icosphere_327k(cfg.hand.height)
+    return obj, _pinch_x((obj.section.bounds[2] - obj.section.bounds[0]) / 2)
+
+
+@functools.lru_cache(maxsize=2)
+def _icosphere_327k(finger_height: float) -> SceneObject:
     mesh = scale_to_footprint(trimesh.creation.icosphere(subdivisions=7), 0.05)  # 327,680 faces
-    section = mesh_section(mesh, cfg.hand.height, "icosphere")
-    r = (section.bounds[2] - section.bounds[0]) / 2
-    obj = SceneObject(ObjectSpec("icosphere_327k", "hard_case", 0, 0.05, 0.05), mesh,
-                      [mesh.convex_hull], section, (0.25, 0.3, 0.7))
-    return obj, _pinch_x(r)
+    section = mesh_section(mesh, finger_height, "icosphere")
+    return SceneObject(ObjectSpec("icosphere_327k", "hard_case", 0, 0.05, 0.05), mesh,
+                       [mesh.convex_hull], section, (0.25, 0.3, 0.7))
 
 
 @case("fingers_same_point")
