@@ -47,17 +47,19 @@ def main() -> None:
         rows[fam] = {"contacts": int(len(ang)), "median_deg": float(np.median(ang)),
                      "p95_deg": float(np.percentile(ang, 95)), "max_deg": float(ang.max()),
                      "concave": fam in CONCAVE_FAMILIES}
+    summary = {}
     for kind, concave in (("primitive", False), ("concave", True)):
         sel = [r for r in rows.values() if r["concave"] == concave]
-        rows[f"all {kind}"] = {"families": len(sel),
-                               "median_deg (max over families)": max(r["median_deg"] for r in sel),
-                               "p95_deg (max over families)": max(r["p95_deg"] for r in sel)}
-    (args.out / "result.json").write_text(json.dumps(rows, indent=2) + "\n")
+        summary[kind] = {"families": len(sel),
+                         "worst_family_median_deg": max(r["median_deg"] for r in sel),
+                         "worst_family_p95_deg": max(r["p95_deg"] for r in sel)}
+    result = {"n": args.n, "families": rows, "summary": summary}
+    (args.out / "result.json").write_text(json.dumps(result, indent=2) + "\n")
     print(f"{'family':<14}{'contacts':>9}{'median':>10}{'p95':>10}{'max':>10}  (degrees)")
     for fam, r in rows.items():
-        if "contacts" in r:
-            print(f"{fam:<14}{r['contacts']:>9}{r['median_deg']:>10.4f}{r['p95_deg']:>10.4f}"
-                  f"{r['max_deg']:>10.3f}")
+        print(f"{fam:<14}{r['contacts']:>9}{r['median_deg']:>10.4f}{r['p95_deg']:>10.4f}"
+              f"{r['max_deg']:>10.3f}")
+    print(json.dumps(summary, indent=2))
     shutil.rmtree(data)
 
 
