@@ -68,15 +68,18 @@ def test_clipped_box_matches_shapely():
     import shapely
     from shapely.geometry import LineString
 
-    from vistac_sim.render import capsule_outline, clipped_points
+    from vistac_sim.render import clipped_capsule_points
 
     rng = np.random.default_rng(0)
-    for _ in range(200):
+    for _ in range(300):
         p0, p1 = rng.uniform(-60, 290, 2), rng.uniform(-60, 290, 2)
+        if rng.random() < 0.1:
+            p1 = p0.copy()  # a disc
         r = rng.uniform(1, 40)
-        ref = LineString([p0, p1]).buffer(r, quad_segs=64).intersection(shapely.box(0, 0, 227, 227))
-        pts = clipped_points(capsule_outline(p0, p1, r), 227)
-        if ref.is_empty:
-            assert len(pts) == 0
+        ref = LineString([p0, p1]).buffer(r, quad_segs=256).intersection(
+            shapely.box(0, 0, 227, 227))
+        pts = clipped_capsule_points(p0, p1, r, 227)
+        if ref.is_empty or ref.area < 1e-6:
+            assert len(pts) == 0 or np.ptp(pts, axis=0).min() < 1e-3
             continue
-        np.testing.assert_allclose([*pts.min(0), *pts.max(0)], ref.bounds, atol=0.05)
+        np.testing.assert_allclose([*pts.min(0), *pts.max(0)], ref.bounds, atol=2e-3)
