@@ -55,3 +55,21 @@ def test_convex_pieces_are_exact_and_convex(family, seed):
 def test_thin_wall_outline_has_the_wall_it_asks_for():
     poly = outlines.thin_wall_u(0.06, 0.001)
     assert poly.area == pytest.approx(0.001 * (0.06 + 2 * 0.048 - 2 * 0.001), rel=1e-9)
+
+
+def test_triangle_index_fast_path_agrees_with_the_full_search():
+    mesh = trimesh.creation.icosphere(subdivisions=3)
+    mesh.vertices *= np.array([1.0, 0.7, 0.4])
+    index = TriangleIndex(mesh.vertices, mesh.faces)
+    rng = np.random.default_rng(1)
+    surface, _ = trimesh.sample.sample_surface(mesh, 300, seed=1)
+    pts = surface + rng.normal(scale=1e-3, size=surface.shape)  # contacts lie near the surface
+    ref, dist_ref, _ = trimesh.proximity.closest_point(mesh, pts)
+    fast_used = 0
+    for p, r, dr in zip(pts, ref, dist_ref, strict=True):
+        q, normals = index.closest(p, radius=0.05)
+        fast_used += index._inside_face(p, np.arange(len(mesh.faces))) is not None
+        assert np.linalg.norm(q - p) == pytest.approx(dr, abs=1e-9)
+        np.testing.assert_allclose(q, r, atol=1e-7)
+        assert len(normals) >= 1
+    assert fast_used > 150  # the fast path is the common case (179 of 300 here)

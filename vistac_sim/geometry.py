@@ -41,6 +41,13 @@ class TriangleIndex:
         e1 = self.tri[:, 1] - self.tri[:, 0]
         e2 = self.tri[:, 2] - self.tri[:, 0]
         self.face_normals = unit(np.cross(e1, e2))
+        # Barycentric (u, v) of a point's projection: uv = bary @ (p - a), for the fast path.
+        gram = np.stack([np.stack([(e1 * e1).sum(1), (e1 * e2).sum(1)], -1),
+                         np.stack([(e1 * e2).sum(1), (e2 * e2).sum(1)], -1)], -2)
+        ok = np.abs(np.linalg.det(gram)) > 1e-300  # degenerate faces never take the fast path
+        inv = np.zeros_like(gram)
+        inv[ok] = np.linalg.inv(gram[ok])
+        self.bary = inv @ np.stack([e1, e2], 1)  # (F, 2, 3)
 
     def closest(self, point: np.ndarray, radius: float = 0.002,
                 tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
@@ -53,11 +60,37 @@ class TriangleIndex:
         p = np.asarray(point, float)
         near = np.all((self.lo - radius <= p) & (p <= self.hi + radius), axis=1)
         idx = np.flatnonzero(near) if near.any() else np.arange(len(self.tri))
+        fast = self._inside_face(p, idx)
+        if fast is not None:
+            return fast
         q = closest_point_on_triangles(p, self.tri[idx])
         dist = np.sqrt(((q - p) ** 2).sum(1))
         k = int(np.argmin(dist))
         touching = idx[dist <= dist[k] + tol]
         return q[k], self.face_normals[touching]
+
+
+    def _inside_face(self, p: np.ndarray, idx: np.ndarray,
+                     margin: float = 1e-6) -> tuple[np.ndarray, np.ndarray] | None:
+        """The common case, exactly: `p` projects well inside face j, and no other candidate
+        that is not coplanar with j has its plane closer (a face's distance is at least its
+        plane's), so j holds the closest point and it lies on no edge. None otherwise."""
+        w = p - self.tri[idx, 0]
+        plane = np.einsum("ij,ij->i", w, self.face_normals[idx])
+        uv = np.einsum("ijk,ik->ij", self.bary[idx], w)
+        inside = (uv[:, 0] > margin) & (uv[:, 1] > margin) & (uv.sum(1) < 1 - margin)
+        if not inside.any():
+            return None
+        dist = np.abs(plane)
+        j = int(np.argmin(np.where(inside, dist, np.inf)))
+        n = self.face_normals[idx[j]]
+        coplanar = (self.face_normals[idx] @ n > _COPLANAR_COS) & (np.abs(plane - plane[j]) < 1e-12)
+        if np.any(~coplanar & (dist < dist[j])):
+            return None
+        return p - plane[j] * n, n[None]
+
+
+_COPLANAR_COS = np.cos(np.radians(0.01))
 
 
 def closest_point_on_triangles(p: np.ndarray, tri: np.ndarray) -> np.ndarray:

@@ -88,43 +88,45 @@ class Press:
     def _read(self) -> PressResult:
         m, d, ids, phys = self.model, self.data, self.ids, self.cfg.physics
         ncon = d.ncon
-        g1, g2 = d.contact.geom1[:ncon], d.contact.geom2[:ncon]
-        out = {k: np.zeros((2, 3)) for k in ("fw", "fc", "tip", "pos")}
+        g1 = d.contact.geom1[:ncon].tolist()
+        g2 = d.contact.geom2[:ncon].tolist()
+        force_w, force_c, tip, pos = (np.zeros((2, 3)) for _ in range(4))
         rot = np.zeros((2, 3, 3))
         pen = np.zeros(2)
         pad_contacts = []
         for k, f in enumerate(FINGERS):
-            if np.any((g1 == ids.shaft[f]) | (g2 == ids.shaft[f])):
+            pad_id, shaft_id = ids.pad[f], ids.shaft[f]
+            if shaft_id in g1 or shaft_id in g2:
                 raise RejectedSample("shaft_contact", f"{f} finger touches behind the pad")
-            pad = np.flatnonzero((g1 == ids.pad[f]) | (g2 == ids.pad[f]))
-            if pad.size == 0 or d.qpos[ids.qpos[f]] >= self._limit - 1e-6:
+            pad = [c for c in range(ncon) if g1[c] == pad_id or g2[c] == pad_id]
+            if not pad or d.qpos[ids.qpos[f]] >= self._limit - 1e-6:
                 raise RejectedSample("no_contact", f"{f} pad reached no surface")
-            if abs(d.qvel[ids.dof[f]]) > phys.max_speed:
-                raise RejectedSample("not_settled", f"{f} tip still moves at "
-                                     f"{abs(d.qvel[ids.dof[f]]):.2e} m/s")
-            pen[k] = max(0.0, -float(d.contact.dist[pad].min()))
+            speed = abs(d.qvel[ids.dof[f]])
+            if speed > phys.max_speed:
+                raise RejectedSample("not_settled", f"{f} tip still moves at {speed:.2e} m/s")
+            pen[k] = max(0.0, -min(d.contact.dist[c] for c in pad))
             if pen[k] > phys.max_penetration:
                 raise RejectedSample("penetration", f"{f} pad {pen[k] * 1e3:.2f} mm deep")
-            weights = np.zeros(len(pad))
+            rows = np.zeros((len(pad), 4))  # contact xyz, normal force
             for j, c in enumerate(pad):
-                mujoco.mj_contactForce(m, d, int(c), self._f6)
-                frame = d.contact.frame[c].reshape(3, 3)
+                mujoco.mj_contactForce(m, d, c, self._f6)
                 # mj_contactForce gives the force of geom1 on geom2 in the contact frame.
-                f_on_geom2 = frame.T @ self._f6[:3]
-                out["fw"][k] += f_on_geom2 if g2[c] == ids.pad[f] else -f_on_geom2
-                weights[j] = self._f6[0]
-            w = weights / weights.sum() if weights.sum() > 0 else np.full(len(pad), 1 / len(pad))
-            out["pos"][k] = w @ d.contact.pos[pad]
-            pad_contacts.append(np.column_stack([d.contact.pos[pad], weights]))
+                f_on_geom2 = d.contact.frame[c].reshape(3, 3).T @ self._f6[:3]
+                force_w[k] += f_on_geom2 if g2[c] == pad_id else -f_on_geom2
+                rows[j, :3] = d.contact.pos[c]
+                rows[j, 3] = self._f6[0]
+            total = rows[:, 3].sum()
+            w = rows[:, 3] / total if total > 0 else np.full(len(pad), 1 / len(pad))
+            pos[k] = w @ rows[:, :3]
+            pad_contacts.append(rows)
             rot[k] = d.site_xmat[ids.site[f]].reshape(3, 3)
             adr = ids.sensor_adr[f]
             # The netforce contact sensor reports the force of geom1 (the pad) on geom2 (the
             # object) in the world frame; the pad feels the opposite.
-            out["fc"][k] = -rot[k].T @ d.sensordata[adr:adr + 3]
-            out["tip"][k] = d.xpos[m.geom_bodyid[ids.pad[f]]]
-        force_sensor = np.einsum("kji,kj->ki", rot, out["fw"])
-        return PressResult(out["fw"], force_sensor, out["fc"], rot, out["tip"], out["pos"], pen,
-                           tuple(pad_contacts))
+            force_c[k] = -rot[k].T @ d.sensordata[adr:adr + 3]
+            tip[k] = d.xpos[m.geom_bodyid[pad_id]]
+        force_sensor = np.einsum("kji,kj->ki", rot, force_w)
+        return PressResult(force_w, force_sensor, force_c, rot, tip, pos, pen, tuple(pad_contacts))
 
 
 def _warnings(d: mujoco.MjData) -> str:

@@ -6,6 +6,7 @@ World -> pixel (camera centred on the world origin, looking straight down):
 
 from __future__ import annotations
 
+import math
 import struct
 import zlib
 
@@ -92,11 +93,7 @@ def finger_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
     return boxes_from_outlines(caps, cfg.image_size)
 
 
-_DIRS = np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]])
-
-
-def clipped_capsule_points(p0: np.ndarray, p1: np.ndarray, radius: float,
-                           size: float) -> np.ndarray:
+def clipped_capsule_points(p0, p1, radius: float, size: float) -> np.ndarray:
     """Points of (capsule p0-p1 widened by `radius`) within [0, size]^2 whose box is exactly the
     box of that intersection (empty if they do not meet).
 
@@ -104,41 +101,50 @@ def clipped_capsule_points(p0: np.ndarray, p1: np.ndarray, radius: float,
     where its boundary crosses the square's sides, or corners of the square. Candidates: the
     axis-extreme points of both end circles, every crossing of the square's side lines with both
     circles and both flat sides, and the four corners; kept if they lie in the capsule and in the
-    square (points inside both do not widen the box, so over-collecting is harmless).
+    square (points inside both do not widen the box, so over-collecting is harmless). Plain
+    floats: a few dozen candidates are cheaper in Python than in small numpy arrays.
     """
-    p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
-    r = float(radius)
-    extremes = np.concatenate([p0 + r * _DIRS, p1 + r * _DIRS])
-    lo, hi = extremes.min(0), extremes.max(0)
-    if lo.min() >= 0 and hi.max() <= size:  # wholly inside: the capsule's own extremes
-        return extremes
-    if lo.max() > size or hi.min() < 0:  # wholly outside
+    x0, y0, x1, y1, r = float(p0[0]), float(p0[1]), float(p1[0]), float(p1[1]), float(radius)
+    ext = [(x0 + r, y0), (x0 - r, y0), (x0, y0 + r), (x0, y0 - r),
+           (x1 + r, y1), (x1 - r, y1), (x1, y1 + r), (x1, y1 - r)]
+    lo_x, hi_x = min(x0, x1) - r, max(x0, x1) + r
+    lo_y, hi_y = min(y0, y1) - r, max(y0, y1) + r
+    if lo_x >= 0 and lo_y >= 0 and hi_x <= size and hi_y <= size:  # wholly inside
+        return np.array(ext)
+    if lo_x > size or lo_y > size or hi_x < 0 or hi_y < 0:  # wholly outside
         return np.empty((0, 2))
+    cand = ext + [(0.0, 0.0), (size, 0.0), (0.0, size), (size, size)]
+    dx, dy = x1 - x0, y1 - y0
+    length = math.hypot(dx, dy)
+    for line in (0.0, size):
+        for cx, cy in ((x0, y0), (x1, y1)):  # end circles crossing x = line and y = line
+            h2 = r * r - (line - cx) ** 2
+            if h2 >= 0:
+                h = math.sqrt(h2)
+                cand += [(line, cy + h), (line, cy - h)]
+            h2 = r * r - (line - cy) ** 2
+            if h2 >= 0:
+                h = math.sqrt(h2)
+                cand += [(cx + h, line), (cx - h, line)]
+        if length > 0:  # flat sides (s + t d, t in [0, 1]) crossing the lines
+            nx, ny = -dy / length * r, dx / length * r
+            for sx, sy in ((x0 + nx, y0 + ny), (x0 - nx, y0 - ny)):
+                if dx:
+                    t = min(max((line - sx) / dx, 0.0), 1.0)
+                    cand.append((sx + t * dx, sy + t * dy))
+                if dy:
+                    t = min(max((line - sy) / dy, 0.0), 1.0)
+                    cand.append((sx + t * dx, sy + t * dy))
     eps = 1e-9 * max(size, 1.0)
-    lines = np.array([0.0, size])
-    centres = np.array([p0, p1])
-    d = p1 - p0
-    length = np.hypot(d[0], d[1])
-    normal = np.array([-d[1], d[0]]) / length if length > 0 else np.zeros(2)
-    sides = np.array([p0 + r * normal, p0 - r * normal])
-    cand = [extremes, np.array([[0, 0], [size, 0], [0, size], [size, size]], float)]
-    for axis in (0, 1):
-        other = 1 - axis
-        off = lines[None, :] - centres[:, axis:axis + 1]  # (centre, line)
-        h = np.sqrt(np.maximum(r * r - off**2, 0.0))
-        pts = np.empty((2, 2, 2, 2))  # centre, line, sign, xy
-        pts[..., axis] = lines[None, :, None]
-        pts[..., other] = centres[:, other, None, None] + h[..., None] * np.array([1.0, -1.0])
-        cand.append(pts.reshape(-1, 2))
-        if d[axis] != 0:
-            t = np.clip((lines[None, :] - sides[:, axis:axis + 1]) / d[axis], 0.0, 1.0)
-            cand.append((sides[:, None, :] + t[..., None] * d).reshape(-1, 2))
-    pts = np.concatenate(cand)
-    t = np.clip(((pts - p0) @ d) / max(d @ d, 1e-300), 0.0, 1.0)
-    gap = pts - p0 - t[:, None] * d
-    keep = (np.all((pts >= -eps) & (pts <= size + eps), axis=1)
-            & ((gap**2).sum(1) <= (r + eps) ** 2))
-    return np.clip(pts[keep], 0.0, size)
+    dd = dx * dx + dy * dy
+    keep = []
+    for px, py in cand:
+        if not (-eps <= px <= size + eps and -eps <= py <= size + eps):
+            continue
+        t = min(max(((px - x0) * dx + (py - y0) * dy) / dd, 0.0), 1.0) if dd > 0 else 0.0
+        if (px - x0 - t * dx) ** 2 + (py - y0 - t * dy) ** 2 <= (r + eps) ** 2:
+            keep.append((min(max(px, 0.0), size), min(max(py, 0.0), size)))
+    return np.array(keep) if keep else np.empty((0, 2))
 
 
 def encode_png(rgb: np.ndarray, level: int = 1) -> bytes:
