@@ -111,6 +111,9 @@ def test_hard_case_expectations():
     cfg = GenerateCfg()
     cfg.physics.friction = 0.0
     assert run_case("fingers_same_point", cfg).reason == "fingers_overlap"
+    for name in ("sharp_convex_corner", "very_small_object", "thin_wall_1mm"):
+        out = run_case(name, cfg)  # corners and tiny curved objects: the normal-cone member
+        assert out.accepted and np.all(out.angle_to_normal_deg < 0.5), name
     grazing = run_case("grazing_85deg", cfg)
     assert grazing.accepted
     # 85 degrees off the normal: the frictionless force is the normal, 85 deg from the pad's z.

@@ -85,7 +85,7 @@ class TriangleIndex:
         j = int(np.argmin(np.where(inside, dist, np.inf)))
         n = self.face_normals[idx[j]]
         coplanar = (self.face_normals[idx] @ n > _COPLANAR_COS) & (np.abs(plane - plane[j]) < 1e-12)
-        if np.any(~coplanar & (dist < dist[j])):
+        if np.any(~coplanar & (dist <= dist[j] + 1e-12)):
             return None
         return p - plane[j] * n, n[None]
 

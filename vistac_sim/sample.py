@@ -51,29 +51,30 @@ class ObjectScene:
     def surface_normals(self, grasp: Grasp, res: PressResult) -> np.ndarray:
         """(2, 3) outward normal of the full-resolution mesh at each pad's contact, world frame.
 
-        Per contact, q is the closest mesh point to MuJoCo's contact point. Inside a face (or on
-        an edge between coplanar faces) the normal is the face normal. On a sharp edge or corner
-        it is the member of the normal cone that points at the pad, (s - q)/|s - q| with s the
-        closest point of the pad capsule's axis, which is the direction a frictionless contact
-        pushes along there. Several contacts of one pad are averaged with their normal-force
-        weights.
+        Per contact, s is the point of the pad capsule's axis nearest MuJoCo's contact point (the
+        centre of the pad sphere that touches there; it lies outside the object) and q the mesh
+        point nearest s. Inside a face (or on an edge between coplanar faces) the normal is the
+        face normal. On a sharp edge or corner it is (s - q)/|s - q|, the member of the normal
+        cone that points at the pad, which is the direction a frictionless contact pushes along
+        there. Several contacts of one pad are averaged with their normal-force weights.
         """
         # World <-> object frame: rotation about z by the object's yaw, then its offset.
         rot = np.eye(3)
         rot[:2, :2] = rot2(grasp.object_yaw)
         origin = np.array([grasp.object_xy[0], grasp.object_xy[1], 0.0])
         reach = 2 * self.cfg.hand.tip_half_length
+        search = self.cfg.hand.tip_radius + 0.002  # the pad centre is about one radius away
         out = np.zeros((2, 3))
         for k in range(2):
             axis = np.array([grasp.approach[k, 0], grasp.approach[k, 1], 0.0])
             tip = res.tip[k]
             for *pos, weight in res.pad_contacts[k]:
-                q_obj, face_n = self.triangles.closest(rot.T @ (np.asarray(pos) - origin))
+                centre = closest_on_segment(np.asarray(pos), tip - axis * reach, tip)
+                q_obj, face_n = self.triangles.closest(rot.T @ (centre - origin), radius=search)
                 if np.all(face_n @ face_n[0] > _FLAT_COS):
                     n = rot @ face_n[0]
                 else:
-                    q = rot @ q_obj + origin
-                    n = unit(closest_on_segment(q, tip - axis * reach, tip) - q)
+                    n = unit(centre - (rot @ q_obj + origin))
                 out[k] += max(weight, 1e-12) * n
         return unit(out)
 
