@@ -49,16 +49,18 @@ class TriangleIndex:
         inv[ok] = np.linalg.inv(gram[ok])
         self.bary = inv @ np.stack([e1, e2], 1)  # (F, 2, 3)
 
-    def closest(self, point: np.ndarray, radius: float = 0.002,
-                tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+    def closest(self, point: np.ndarray, radius: float = 0.002, tol: float = 1e-9,
+                around: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Closest point on the mesh to `point`, and the normals of all faces touching it.
 
-        Only faces whose box lies within `radius` are tested; if none does, all faces are.
+        Only faces whose box lies within `radius` of `around` (default: of `point`) are tested;
+        if none does, all faces are.
         Faces whose own closest point lies within `tol` of the best one share that point (it sits
         on their common edge or corner); their normals span the normal cone there.
         """
         p = np.asarray(point, float)
-        near = np.all((self.lo - radius <= p) & (p <= self.hi + radius), axis=1)
+        c = p if around is None else np.asarray(around, float)
+        near = np.all((self.lo - radius <= c) & (c <= self.hi + radius), axis=1)
         idx = np.flatnonzero(near) if near.any() else np.arange(len(self.tri))
         fast = self._inside_face(p, idx)
         if fast is not None:

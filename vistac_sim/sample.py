@@ -53,7 +53,9 @@ class ObjectScene:
 
         Per contact, s is the point of the pad capsule's axis nearest MuJoCo's contact point (the
         centre of the pad sphere that touches there; it lies outside the object) and q the mesh
-        point nearest s. Inside a face (or on an edge between coplanar faces) the normal is the
+        point nearest s, searched among the faces near the contact point (a face the pad does not
+        touch is farther from s than the touched ones, and a second touched face makes its own
+        contact). Inside a face (or on an edge between coplanar faces) the normal is the
         face normal. On a sharp edge or corner it is (s - q)/|s - q|, the member of the normal
         cone that points at the pad, which is the direction a frictionless contact pushes along
         there. Several contacts of one pad are averaged with their normal-force weights.
@@ -63,14 +65,14 @@ class ObjectScene:
         rot[:2, :2] = rot2(grasp.object_yaw)
         origin = np.array([grasp.object_xy[0], grasp.object_xy[1], 0.0])
         reach = 2 * self.cfg.hand.tip_half_length
-        search = self.cfg.hand.tip_radius + 0.002  # the pad centre is about one radius away
         out = np.zeros((2, 3))
         for k in range(2):
             axis = np.array([grasp.approach[k, 0], grasp.approach[k, 1], 0.0])
             tip = res.tip[k]
             for *pos, weight in res.pad_contacts[k]:
                 centre = closest_on_segment(np.asarray(pos), tip - axis * reach, tip)
-                q_obj, face_n = self.triangles.closest(rot.T @ (centre - origin), radius=search)
+                q_obj, face_n = self.triangles.closest(rot.T @ (centre - origin),
+                                                       around=rot.T @ (np.asarray(pos) - origin))
                 if np.all(face_n @ face_n[0] > _FLAT_COS):
                     n = rot @ face_n[0]
                 else:
