@@ -32,14 +32,12 @@ mujoco.set_mju_user_warning(lambda msg: _LOG.debug("MuJoCo warning: %s", msg))
 class PressResult:
     """A settled press, per finger (index, thumb)."""
 
-    force_world: np.ndarray  # (2, 3) force of the object on each pad, N, world frame
-    force_sensor: np.ndarray  # (2, 3) the same in each sensor frame (method 1)
+    force_sensor: np.ndarray  # (2, 3) force of the object on each pad, N, sensor frames (method 1)
     force_sensor_check: np.ndarray  # (2, 3) from the netforce contact sensor (method 2)
     rotation: np.ndarray  # (2, 3, 3) world-from-sensor rotations
     tip: np.ndarray  # (2, 3) front-cap centre of each tip, world
-    contact: np.ndarray  # (2, 3) force-weighted contact point, world
     penetration: np.ndarray  # (2,) deepest penetration, m
-    pad_contacts: tuple[np.ndarray, ...] = ()  # per finger: (m, 4) contact xyz, normal force
+    pad_contacts: tuple[np.ndarray, ...]  # per finger: (m, 4) contact xyz (world), normal force
 
 
 class Press:
@@ -90,7 +88,7 @@ class Press:
         ncon = d.ncon
         g1 = d.contact.geom1[:ncon].tolist()
         g2 = d.contact.geom2[:ncon].tolist()
-        force_w, force_c, tip, pos = (np.zeros((2, 3)) for _ in range(4))
+        force_w, force_c, tip = (np.zeros((2, 3)) for _ in range(3))
         rot = np.zeros((2, 3, 3))
         pen = np.zeros(2)
         pad_contacts = []
@@ -115,9 +113,6 @@ class Press:
                 force_w[k] += f_on_geom2 if g2[c] == pad_id else -f_on_geom2
                 rows[j, :3] = d.contact.pos[c]
                 rows[j, 3] = self._f6[0]
-            total = rows[:, 3].sum()
-            w = rows[:, 3] / total if total > 0 else np.full(len(pad), 1 / len(pad))
-            pos[k] = w @ rows[:, :3]
             pad_contacts.append(rows)
             rot[k] = d.site_xmat[ids.site[f]].reshape(3, 3)
             adr = ids.sensor_adr[f]
@@ -126,7 +121,7 @@ class Press:
             force_c[k] = -rot[k].T @ d.sensordata[adr:adr + 3]
             tip[k] = d.xpos[m.geom_bodyid[pad_id]]
         force_sensor = np.einsum("kji,kj->ki", rot, force_w)
-        return PressResult(force_w, force_sensor, force_c, rot, tip, pos, pen, tuple(pad_contacts))
+        return PressResult(force_sensor, force_c, rot, tip, pen, tuple(pad_contacts))
 
 
 def _warnings(d: mujoco.MjData) -> str:
