@@ -106,5 +106,9 @@ def add_command(sub: argparse._SubParsersAction) -> None:
                    help="rotation copies per image (the study used 20)")
     p.add_argument("--workers", type=int, default=0, help="generate processes (0: all cores)")
     p.add_argument("--seed", type=int, default=0)
-    p.set_defaults(func=lambda a: run_demo(a.out, a.n, a.epochs, a.model, a.rotations,
-                                           a.workers, a.seed) and 0)
+    p.set_defaults(func=_handler)
+
+
+def _handler(args: argparse.Namespace) -> int:
+    run_demo(args.out, args.n, args.epochs, args.model, args.rotations, args.workers, args.seed)
+    return 0
