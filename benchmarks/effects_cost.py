@@ -24,11 +24,15 @@ import tempfile
 import time
 from pathlib import Path
 
-from vistac_sim.config import FingerPullCfg, Fts3Cfg, GenerateCfg, PlacementErrorCfg
-from vistac_sim.effects import Pipeline, build_pipeline
-from vistac_sim.generate import generate, object_specs
-from vistac_sim.presets import resolve
-from vistac_sim.sample import SceneCache, make_configuration
+from vistac_sim.effects.finger_pull import FingerPullCfg
+from vistac_sim.effects.fts3 import Fts3Cfg
+from vistac_sim.effects.placement_error import PlacementErrorCfg
+from vistac_sim.effects.presets import resolve
+from vistac_sim.effects.registry import Pipeline, build_pipeline
+from vistac_sim.generate.config import GenerateCfg
+from vistac_sim.generate.configuration import make_configuration
+from vistac_sim.generate.run import generate, object_specs
+from vistac_sim.generate.scenes import SceneCache
 
 
 @contextlib.contextmanager

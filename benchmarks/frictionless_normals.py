@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from vistac_sim.config import CONCAVE_FAMILIES
-from vistac_sim.dataset import load_dataset
+from vistac.dataset import open_dataset
+from vistac_sim.objects.outlines import CONCAVE_FAMILIES
 
 
 def main() -> None:
@@ -31,10 +31,10 @@ def main() -> None:
     args = p.parse_args()
     data = args.out / "data"
     shutil.rmtree(args.out, ignore_errors=True)
-    subprocess.run([sys.executable, "-m", "vistac_sim.cli", "generate", "--n", str(args.n),
+    subprocess.run([sys.executable, "-m", "vistac.cli", "generate", "--n", str(args.n),
                     "--friction", "0", "--repeats", "1", "--seed", str(args.seed), "--workers",
                     str(args.workers), "--out", str(data), "--no-progress"], check=True)
-    _, configs, _ = load_dataset(data)
+    configs = open_dataset(data).configs
     rows = {}
     for fam, group in configs.groupby("object_family"):
         ang = []

@@ -28,18 +28,16 @@ import sys
 import time
 from pathlib import Path
 
-os.environ.setdefault("MUJOCO_GL", "egl")
-
 
 def _bare_worker(args: tuple[int, int, str, int]) -> int:
     """One bare-loop process: `count` samples round-robin over the object library."""
-    import mujoco
     import numpy as np
 
-    from vistac_sim.config import GenerateCfg
-    from vistac_sim.objects import build_object, procedural_library
-    from vistac_sim.render import encode_png
-    from vistac_sim.sample import ObjectScene, draw_grasp
+    from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.generate.scenes import ObjectScene, draw_grasp
+    from vistac_sim.mj import mujoco
+    from vistac_sim.objects.library import build_object, procedural_library
+    from vistac_sim.render.png import encode_png
 
     worker, count, out, seed = args
     cfg = GenerateCfg(seed=seed)
@@ -79,7 +77,7 @@ def run_generate(n: int, workers: int, out: Path, seed: int) -> tuple[float, flo
     """Wall time of a `vistac generate` subprocess and the peak RSS (MiB) of its processes."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "vistac_sim.cli", "generate", "--n", str(n),
+    subprocess.run([sys.executable, "-m", "vistac.cli", "generate", "--n", str(n),
                     "--noise", "0.05", "--seed", str(seed), "--workers", str(workers),
                     "--out", str(out), "--no-progress"], check=True, stdout=subprocess.DEVNULL)
     wall = time.perf_counter() - t0

@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from vistac_sim.config import GenerateCfg
-from vistac_sim.generate import generate
-from vistac_sim.presets import resolve
+from vistac_sim.effects.presets import resolve
+from vistac_sim.generate.config import GenerateCfg
+from vistac_sim.generate.run import generate
 
 NOISES = (0.0, 0.01, 0.02, 0.05, 0.1, 0.2)
 

@@ -30,12 +30,14 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from vistac_learn.data import RotationCfg, open_dataset
-from vistac_learn.evaluate import evaluate_baseline, evaluate_run
+from vistac.cli import main as vistac_main
+from vistac.dataset import open_dataset
+from vistac_learn.data.pairs import RotationCfg
+from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
+from vistac_learn.metrics.scoring import ANGLE_COLUMNS, STUDY_COLUMNS
 from vistac_learn.models import model_info
-from vistac_learn.scoring import ANGLE_COLUMNS, STUDY_COLUMNS
-from vistac_learn.train import TrainCfg, train
-from vistac_sim.cli import main as vistac_main
+from vistac_learn.train.config import TrainCfg
+from vistac_learn.train.loop import train
 
 DEFAULT_MODELS = ("schoeconv100-v3-fc160", "alexnet-1x1", "smallconv", "resnet-tiny")
 

@@ -20,9 +20,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from vistac_sim.generate import generate
-from vistac_sim.ingest import IngestCfg, IngestSources, ingest
-from vistac_sim.presets import resolve
+from vistac_sim.effects.presets import resolve
+from vistac_sim.generate.run import generate
+from vistac_sim.recording.ingest.config import IngestCfg, IngestSources
+from vistac_sim.recording.ingest.run import ingest
 
 FINGERS = ("index", "thumb")
 
@@ -58,7 +59,7 @@ def compare(gen: Path, ing: Path) -> dict:
 
 
 def run(preset: str, n: int, seed: int, workers: int, root: Path, cfg: IngestCfg) -> dict:
-    from vistac_sim.config import GenerateCfg
+    from vistac_sim.generate.config import GenerateCfg
 
     gcfg = GenerateCfg(n=n, seed=seed)
     gcfg.effects, gcfg.recording = resolve(preset)

@@ -1,12 +1,13 @@
-"""Shared test set-up: the --runslow switch and a small generated dataset."""
+"""Shared test set-up: the --runslow switch and a small generated dataset.
+
+Tests mirror the packages: `core/` (vistac: config, dataset, CLI, imports), `sim/`
+(vistac_sim), `learn/` (vistac_learn). Helpers live next to them (`learn_fixtures.py` here,
+`sim/hard_cases.py`); pytest puts each test's folder and this one on the import path.
+"""
 
 from __future__ import annotations
 
-import os
-
-os.environ.setdefault("MUJOCO_GL", "egl")  # before anything imports mujoco
-
-import pytest  # noqa: E402
+import pytest
 
 
 def pytest_addoption(parser):
@@ -25,7 +26,7 @@ def pytest_collection_modifyitems(config, items):
 @pytest.fixture(scope="session")
 def small_dataset(tmp_path_factory):
     """A real 24-configuration dataset made by `vistac generate` (in-process, one worker)."""
-    from vistac_sim.cli import main
+    from vistac.cli import main
 
     out = tmp_path_factory.mktemp("data") / "d"
     rc = main(["generate", "--n", "24", "--noise", "0.05", "--seed", "1", "--out", str(out),

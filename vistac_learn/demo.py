@@ -18,7 +18,7 @@ from pathlib import Path
 def run_demo(out: Path, n: int, epochs: int, model: str, rotations: int, workers: int,
              seed: int) -> Path:
     """Run the demo pipeline into `out` and return the path of its report."""
-    from vistac_sim.cli import main as vistac
+    from vistac.cli import main as vistac
 
     out.mkdir(parents=True, exist_ok=True)
     data, run = out / "data", out / "run"

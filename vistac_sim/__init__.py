@@ -1,10 +1,19 @@
 """vistac_sim: MuJoCo scenes of a two-finger hand pressing rigid objects, top-view renders and
-fingertip force labels written as datasets."""
+fingertip force labels written as datasets.
 
-import os
+Sub-packages follow the data's way through `vistac generate`:
 
-# MuJoCo picks its GL backend at import time; EGL works headless on the machines we target.
-os.environ.setdefault("MUJOCO_GL", "egl")
-os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
+- `objects`: procedural outlines and user meshes, with convex collision pieces;
+- `scene`: the hand's MJCF asset edited per config, the object added, compiled; grasps;
+- `physics`: the press, its checks and the surface-normal look-up;
+- `render`: the orthographic top view, exact finger boxes, PNG encoding, effect views;
+- `effects`: the effect registry and one small module per effect, presets and scene files;
+- `recording`: the 50 Hz press session, RH8D/FTS-3 recording CSVs and `vistac ingest`;
+- `generate`: grasp sampling, one configuration end to end, workers, shards and resume.
 
-__version__ = "0.1.0"
+MuJoCo is imported through `vistac_sim.mj` only (it picks the headless GL backend).
+"""
+
+from vistac import __version__
+
+__all__ = ["__version__"]

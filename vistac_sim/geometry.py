@@ -1,4 +1,4 @@
-"""Small vectorised geometry helpers: rotations in the plane, closest points on meshes."""
+"""Small vectorised geometry helpers: rotations in the plane, unit vectors, angles."""
 
 from __future__ import annotations
 
@@ -28,108 +28,6 @@ def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     cross = np.linalg.norm(np.cross(a, b), axis=-1) if a.shape[-1] == 3 else np.abs(
         a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
     return np.degrees(np.arctan2(cross, (a * b).sum(-1)))
-
-
-class TriangleIndex:
-    """Closest-point queries on a triangle mesh: AABB pre-filter, then exact point-triangle."""
-
-    def __init__(self, vertices: np.ndarray, faces: np.ndarray):
-        self.tri = np.asarray(vertices, float)[np.asarray(faces)]  # (F, 3, 3)
-        self.lo = self.tri.min(axis=1)
-        self.hi = self.tri.max(axis=1)
-
-        e1 = self.tri[:, 1] - self.tri[:, 0]
-        e2 = self.tri[:, 2] - self.tri[:, 0]
-        self.face_normals = unit(np.cross(e1, e2))
-        # Barycentric (u, v) of a point's projection: uv = bary @ (p - a), for the fast path.
-        gram = np.stack([np.stack([(e1 * e1).sum(1), (e1 * e2).sum(1)], -1),
-                         np.stack([(e1 * e2).sum(1), (e2 * e2).sum(1)], -1)], -2)
-        ok = np.abs(np.linalg.det(gram)) > 1e-300  # degenerate faces never take the fast path
-        inv = np.zeros_like(gram)
-        inv[ok] = np.linalg.inv(gram[ok])
-        self.bary = inv @ np.stack([e1, e2], 1)  # (F, 2, 3)
-
-    def closest(self, point: np.ndarray, radius: float = 0.002, tol: float = 1e-9,
-                around: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Closest point on the mesh to `point`, and the normals of all faces touching it.
-
-        Only faces whose box lies within `radius` of `around` (default: of `point`) are tested;
-        if none does, all faces are.
-        Faces whose own closest point lies within `tol` of the best one share that point (it sits
-        on their common edge or corner); their normals span the normal cone there.
-        """
-        p = np.asarray(point, float)
-        c = p if around is None else np.asarray(around, float)
-        near = np.all((self.lo - radius <= c) & (c <= self.hi + radius), axis=1)
-        idx = np.flatnonzero(near) if near.any() else np.arange(len(self.tri))
-        fast = self._inside_face(p, idx)
-        if fast is not None:
-            return fast
-        q = closest_point_on_triangles(p, self.tri[idx])
-        dist = np.sqrt(((q - p) ** 2).sum(1))
-        k = int(np.argmin(dist))
-        touching = idx[dist <= dist[k] + tol]
-        return q[k], self.face_normals[touching]
-
-
-    def _inside_face(self, p: np.ndarray, idx: np.ndarray,
-                     margin: float = 1e-6) -> tuple[np.ndarray, np.ndarray] | None:
-        """The common case, exactly: `p` projects well inside face j, and no other candidate
-        that is not coplanar with j has its plane closer (a face's distance is at least its
-        plane's), so j holds the closest point and it lies on no edge. None otherwise."""
-        w = p - self.tri[idx, 0]
-        plane = np.einsum("ij,ij->i", w, self.face_normals[idx])
-        uv = np.einsum("ijk,ik->ij", self.bary[idx], w)
-        inside = (uv[:, 0] > margin) & (uv[:, 1] > margin) & (uv.sum(1) < 1 - margin)
-        if not inside.any():
-            return None
-        dist = np.abs(plane)
-        j = int(np.argmin(np.where(inside, dist, np.inf)))
-        n = self.face_normals[idx[j]]
-        coplanar = (self.face_normals[idx] @ n > _COPLANAR_COS) & (np.abs(plane - plane[j]) < 1e-12)
-        if np.any(~coplanar & (dist <= dist[j] + 1e-12)):
-            return None
-        return p - plane[j] * n, n[None]
-
-
-_COPLANAR_COS = np.cos(np.radians(0.01))
-
-
-def closest_point_on_triangles(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
-    """Closest point to `p` on each triangle of `tri` (F, 3, 3) (Ericson, Real-Time Collision
-    Detection, 5.1.5), vectorised over triangles."""
-    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
-    ab, ac, ap = b - a, c - a, p - a
-    d1, d2 = (ab * ap).sum(1), (ac * ap).sum(1)
-    bp = p - b
-    d3, d4 = (ab * bp).sum(1), (ac * bp).sum(1)
-    cp = p - c
-    d5, d6 = (ab * cp).sum(1), (ac * cp).sum(1)
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        denom = 1.0 / (va + vb + vc)
-        v = vb * denom
-        w = vc * denom
-        out = a + ab * v[:, None] + ac * w[:, None]  # inside the face
-        t_ab = d1 / (d1 - d3)
-        t_ac = d2 / (d2 - d6)
-        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-    # Edge and vertex regions, assigned from the least to the most specific.
-    m = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-    out[m] = a[m] + ab[m] * t_ab[m, None]
-    m = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-    out[m] = a[m] + ac[m] * t_ac[m, None]
-    m = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
-    out[m] = b[m] + (c[m] - b[m]) * t_bc[m, None]
-    m = (d1 <= 0) & (d2 <= 0)
-    out[m] = a[m]
-    m = (d3 >= 0) & (d4 <= d3)
-    out[m] = b[m]
-    m = (d6 >= 0) & (d5 <= d6)
-    out[m] = c[m]
-    return out
 
 
 def closest_on_segment(p: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:

@@ -1,0 +1,110 @@
+"""vistac.dataset: the one reader of the format, its checks and messages, and the label rule."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+from learn_fixtures import make_dataset
+
+from vistac.dataset import FINGERS, open_dataset, press_row, unit_labels
+from vistac.dataset.schema import LABEL_COLUMNS, box_columns, force_columns
+from vistac.errors import UserError
+
+
+@pytest.fixture(scope="module")
+def ds_dir(tmp_path_factory):
+    return make_dataset(tmp_path_factory.mktemp("data") / "ds", n=8, repeats=3, size=64)
+
+
+def _copy(src, dst):
+    shutil.copytree(src, dst)
+    return dst
+
+
+def test_unit_labels_convention():
+    forces = np.array([[[0.1, 0.3, -0.4], [0.0, 0.0, 0.0]], [[1, -2, -2], [0, 1e-9, 0]]])
+    labels = unit_labels(forces)
+    np.testing.assert_allclose(labels[0, 0], [0.6, -0.8])
+    assert labels[0, 1].tolist() == [0.0, -1.0]  # no (F_y, F_z): straight against the approach
+    assert labels[1, 1].tolist() == [1.0, 0.0]
+    np.testing.assert_allclose(np.linalg.norm(labels, axis=-1), 1.0)
+    assert unit_labels(np.zeros(3)).tolist() == [0.0, -1.0]
+
+
+def test_press_row_names_every_column_once():
+    row = press_row(7, 2, np.arange(6.0).reshape(2, 3), unit_labels(-np.ones((2, 3))))
+    assert list(row) == ["config_id", "repeat", *force_columns("index"),
+                         *force_columns("thumb"), *LABEL_COLUMNS]
+    assert row["force_thumb_y"] == 4.0 and row["r_z_index"] == pytest.approx(-2 ** -0.5)
+    assert FINGERS == ("index", "thumb") and box_columns("thumb")[0] == "bbox_thumb_x"
+
+
+def test_interrupted_run_is_named(tmp_path):
+    (tmp_path / ".partial").mkdir()
+    with pytest.raises(UserError, match="interrupted run"):
+        open_dataset(tmp_path)
+
+
+def test_open_dataset_reads_cones_sorted_by_config(ds_dir):
+    t = open_dataset(ds_dir)
+    assert list(t.configs["config_id"]) == list(range(8))
+    for f in ("index", "thumb"):
+        assert len(t.cones[f]) == 8
+        assert all(c.shape == (3, 2) for c in t.cones[f])
+        np.testing.assert_allclose(np.hypot(*t.mean_label(f).T), 1.0, atol=1e-12)
+    # the cone of row 2 is exactly the presses of config 2
+    p = t.presses[t.presses.config_id == 2]
+    np.testing.assert_array_equal(t.cones["index"][2], p[["r_y_index", "r_z_index"]].to_numpy())
+
+
+def test_splits_are_whole_configurations(ds_dir):
+    t = open_dataset(ds_dir)
+    rows = {s: set(t.rows(s)) for s in ("train", "val", "test")}
+    assert rows["train"] | rows["val"] | rows["test"] == set(range(8))
+    assert not (rows["train"] & rows["val"]) and not (rows["train"] & rows["test"])
+    with pytest.raises(UserError, match="no configuration in split 'bogus'"):
+        t.rows("bogus")
+
+
+def test_incomplete_dataset_is_refused(tmp_path):
+    d = make_dataset(tmp_path / "ds", n=3, repeats=2, size=32, complete=False)
+    with pytest.raises(UserError, match="not complete"):
+        open_dataset(d)
+
+
+def test_missing_column_and_bad_label_name_file_and_row(ds_dir, tmp_path):
+    d = _copy(ds_dir, tmp_path / "a")
+    p = pd.read_parquet(d / "presses.parquet").drop(columns=["r_z_thumb"])
+    p.to_parquet(d / "presses.parquet")
+    with pytest.raises(UserError, match=r"presses.parquet: missing column\(s\) r_z_thumb"):
+        open_dataset(d)
+    d = _copy(ds_dir, tmp_path / "b")
+    p = pd.read_parquet(d / "presses.parquet")
+    p.loc[4, "r_y_index"] = 3.0
+    p.to_parquet(d / "presses.parquet")
+    with pytest.raises(UserError, match="row 4: \\(index\\) label"):
+        open_dataset(d)
+    with pytest.raises(UserError, match="manifest.json: missing"):
+        open_dataset(tmp_path)
+
+
+def test_real_recording_layout_without_sim_columns(ds_dir, tmp_path):
+    d = _copy(ds_dir, tmp_path / "real")
+    c = pd.read_parquet(d / "configs.parquet")
+    sim_only = [k for k in c.columns if k.startswith(("tip_", "normal_", "force_clean_", "bbox_"))]
+    c.drop(columns=sim_only).to_parquet(d / "configs.parquet")
+    t = open_dataset(d)
+    assert not t.has_boxes("index") and t.box(0, "index") is None
+
+
+def test_manifest_must_be_json(tmp_path, ds_dir):
+    d = _copy(ds_dir, tmp_path / "c")
+    (d / "manifest.json").write_text("{not json")
+    with pytest.raises(UserError, match="not valid JSON"):
+        open_dataset(d)
+    (d / "manifest.json").write_text(json.dumps({"complete": True}))
+    assert len(open_dataset(d).configs) == 8

@@ -1,0 +1,51 @@
+"""vistac_learn.baseline: the geometric baseline recovers the surface normal it assumes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from learn_fixtures import make_dataset
+
+from vistac.dataset import open_dataset
+from vistac_learn.data.pairs import RotationCfg
+from vistac_learn.evaluate.geometric import (
+    GeometricCfg,
+    baseline_predictions,
+    finger_masks,
+    geometric_direction,
+)
+
+
+def _angle(p: np.ndarray) -> np.ndarray:
+    return np.degrees(np.arctan2(p[:, 0], -p[:, 1]))
+
+
+@pytest.fixture(scope="module")
+def frictionless(tmp_path_factory):
+    """Labels exactly along the outward normal (no friction, no noise), 227 px like the study."""
+    return make_dataset(tmp_path_factory.mktemp("bl") / "ds", n=10, repeats=2, size=227,
+                        friction=0.0, noise=0.0, seed=5)
+
+
+def test_recovers_the_normal_at_every_rotation(frictionless):
+    t = open_dataset(frictionless)
+    rows = t.rows(None)
+    pred, item_row, item_rot, failures = baseline_predictions(
+        t, rows, ("index", "thumb"), RotationCfg("fixed", n=5, step_deg=72.0))
+    assert failures == 0 and pred.shape == (50, 4)
+    assert set(item_rot) == set(range(5))
+    for i, f in enumerate(("index", "thumb")):
+        normal = t.configs[[f"normal_{f}_y", f"normal_{f}_z"]].to_numpy()[item_row]
+        err = np.abs(_angle(pred[:, 2 * i:2 * i + 2]) - _angle(normal))
+        assert np.median(err) < 2.5, f  # degrees; pixel quantisation of a 13 px tip
+        assert err.max() < 8.0, f
+        np.testing.assert_allclose(np.hypot(*pred[:, 2 * i:2 * i + 2].T), 1.0)
+
+
+def test_missing_finger_falls_back_straight_into_the_pad(frictionless):
+    t = open_dataset(frictionless)
+    img = np.full((64, 64, 3), 207, np.uint8)
+    masks = finger_masks(img, {f: t.finger_rgb(f) for f in ("index", "thumb")}, {}, GeometricCfg())
+    pred, ok = geometric_direction(img, "index", masks, t.table_rgb)
+    assert not ok and tuple(pred) == (0.0, -1.0)
+

@@ -1,0 +1,148 @@
+"""`vistac generate`: the dataset contract, determinism across workers, kill -9 and resume."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import cv2
+import numpy as np
+import pandas as pd
+import pytest
+
+from vistac.cli import main
+from vistac.dataset import open_dataset
+from vistac.errors import UserError
+
+FINGERS = ("index", "thumb")
+CONFIG_COLUMNS = (
+    ["config_id", "object_id", "image", "split"]
+    + [f"bbox_{f}_{c}" for f in FINGERS for c in "xywh"]
+    + [f"force_clean_{f}_{c}" for f in FINGERS for c in "xyz"]
+    + [f"normal_{f}_{c}" for f in FINGERS for c in "xyz"]
+)
+PRESS_COLUMNS = (["config_id", "repeat"] + [f"force_{f}_{c}" for f in FINGERS for c in "xyz"]
+                 + ["r_y_index", "r_z_index", "r_y_thumb", "r_z_thumb"])
+
+
+def _gen(out, *extra):
+    return main(["generate", "--out", str(out), "--no-progress", *extra])
+
+
+def test_dataset_matches_contract(small_dataset):
+    t = open_dataset(small_dataset)
+    manifest, configs, presses = t.manifest, t.configs, t.presses
+    assert manifest["complete"] and manifest["format_version"] == 1
+    assert manifest["config"]["effects"]["noise"] == 0.05 and manifest["seed"] == 1
+    assert {"mujoco", "numpy", "vistac"} <= set(manifest["versions"])
+    assert [e["name"] for e in manifest["effects"]] == ["force_noise"]
+    assert manifest["counts"]["configs"] == 24 and manifest["counts"]["presses"] == 24 * 6
+    assert set(CONFIG_COLUMNS) <= set(configs.columns)
+    assert set(PRESS_COLUMNS) <= set(presses.columns)
+    assert configs["config_id"].tolist() == list(range(24))
+    assert set(configs["split"]) <= {"train", "val", "test"}
+    assert not configs.select_dtypes("number").isna().any().any()
+    assert not presses.isna().any().any()
+    for f in FINGERS:
+        r = presses[[f"r_y_{f}", f"r_z_{f}"]].to_numpy()
+        np.testing.assert_allclose(np.linalg.norm(r, axis=1), 1.0, atol=1e-12)
+        assert (r[:, 1] < 0).all()
+        assert (configs[f"force_clean_{f}_z"] < 0).all()
+        n = configs[[f"normal_{f}_{c}" for c in "xyz"]].to_numpy()
+        np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-9)
+    for name in configs["image"]:
+        img = cv2.imread(str(small_dataset / "images" / name), cv2.IMREAD_UNCHANGED)
+        assert img.shape == (227, 227, 3) and img.dtype == np.uint8
+    # Noise: repeats of one configuration differ, but only by a few percent.
+    spread = presses.groupby("config_id")["force_index_y"].std()
+    assert (spread > 0).all()
+
+
+def test_same_seed_same_bytes_whatever_the_workers(tmp_path):
+    args = ["--n", "16", "--seed", "3", "--noise", "0.05", "--n-objects", "6", "--chunk-size", "4"]
+    assert _gen(tmp_path / "w1", *args, "--workers", "1") == 0
+    assert _gen(tmp_path / "w2", *args, "--workers", "2") == 0
+    for name in ("presses.parquet", "configs.parquet"):
+        assert (tmp_path / "w1" / name).read_bytes() == (tmp_path / "w2" / name).read_bytes()
+    for img in sorted((tmp_path / "w1" / "images").iterdir()):
+        assert img.read_bytes() == (tmp_path / "w2" / "images" / img.name).read_bytes()
+
+
+def test_kill_9_then_resume_equals_uninterrupted(tmp_path):
+    args = ["--n", "40", "--seed", "5", "--noise", "0.05", "--n-objects", "4", "--chunk-size",
+            "4", "--workers", "1"]
+    assert _gen(tmp_path / "ref", *args) == 0
+    out = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "vistac.cli", "generate", "--out", str(out), "--no-progress",
+           *args]
+    proc = subprocess.Popen(cmd)
+    shards = out / ".partial" / "shards"
+    deadline = time.time() + 120
+    while time.time() < deadline and len(list(shards.glob("*.configs.parquet"))) < 3:
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (out / "manifest.json").exists()
+    with pytest.raises(UserError, match="interrupted run"):
+        open_dataset(out)
+    assert _gen(out, *args, "--resume") == 0
+    for name in ("presses.parquet", "configs.parquet"):
+        assert (out / name).read_bytes() == (tmp_path / "ref" / name).read_bytes()
+    ref_images = sorted(p.name for p in (tmp_path / "ref" / "images").iterdir())
+    assert sorted(p.name for p in (out / "images").iterdir()) == ref_images
+    for name in ref_images:
+        assert (out / "images" / name).read_bytes() == (tmp_path / "ref" / "images" / name
+                                                        ).read_bytes()
+    manifest = json.loads((out / "manifest.json").read_text())
+    ref = json.loads((tmp_path / "ref" / "manifest.json").read_text())
+    assert manifest["redraws"] == ref["redraws"] and manifest["counts"] == ref["counts"]
+    assert not (out / ".partial").exists()
+
+
+def test_refuses_to_overwrite_or_mix_settings(tmp_path, small_dataset, capsys):
+    assert _gen(small_dataset, "--n", "2") == 2
+    assert "complete dataset" in capsys.readouterr().err
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / "file.txt").write_text("mine")
+    assert _gen(tmp_path / "busy", "--n", "2") == 2
+    assert (tmp_path / "busy" / "file.txt").read_text() == "mine"
+    assert _gen(tmp_path / "none", "--n", "2", "--resume") == 2
+    assert "nothing to resume" in capsys.readouterr().err
+
+
+def test_resume_with_other_settings_is_refused(tmp_path, capsys):
+    out = tmp_path / "d"
+    (out / ".partial").mkdir(parents=True)
+    (out / ".partial" / "run.json").write_text(json.dumps({"config": {"n": 1}, "objects": []}))
+    assert _gen(out, "--n", "4", "--workers", "1", "--resume") == 2
+    assert "other settings" in capsys.readouterr().err
+
+
+def test_split_by_object_keeps_objects_whole(tmp_path):
+    out = tmp_path / "d"
+    assert _gen(out, "--n", "30", "--repeats", "1", "--n-objects", "10", "--split-by", "object",
+                "--workers", "1") == 0
+    configs = open_dataset(out).configs
+    per_object = configs.groupby("object_id")["split"].nunique()
+    assert (per_object == 1).all()
+    assert set(configs["split"]) == {"train", "val", "test"}
+
+
+def test_frictionless_angles_are_small(tmp_path):
+    out = tmp_path / "d"
+    assert _gen(out, "--n", "24", "--repeats", "1", "--friction", "0", "--workers", "1") == 0
+    configs = open_dataset(out).configs
+    for f in FINGERS:
+        force = configs[[f"force_clean_{f}_{c}" for c in "xyz"]].to_numpy()
+        normal = configs[[f"normal_{f}_{c}" for c in "xyz"]].to_numpy()
+        cos = (force * normal).sum(1) / np.linalg.norm(force, axis=1)
+        assert np.median(np.degrees(np.arccos(np.clip(cos, -1, 1)))) <= 0.5
+
+
+def test_pixel_mapping_columns_agree_with_manifest(small_dataset):
+    t = open_dataset(small_dataset)
+    manifest, configs = t.manifest, t.configs
+    assert np.allclose(configs["px_per_m"], manifest["render"]["px_per_m"])
+    assert pd.api.types.is_integer_dtype(configs["config_id"])

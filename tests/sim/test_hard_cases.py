@@ -1,0 +1,43 @@
+"""The hard-case suite: each named hard scene yields checked labels or a named rejection."""
+
+import numpy as np
+import pytest
+from hard_cases import CASES, KNOWN_REASONS, run_case, thin_wall_u
+
+from vistac_sim.generate.config import GenerateCfg
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.6])
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_hard_cases_give_checked_labels_or_a_named_reason(name, friction):
+    cfg = GenerateCfg()
+    cfg.physics.friction = friction
+    out = run_case(name, cfg)
+    if not out.accepted:
+        assert out.reason in KNOWN_REASONS
+        return
+    assert np.isfinite(out.labels).all() and np.isfinite(out.force).all()
+    np.testing.assert_allclose(np.linalg.norm(out.labels, axis=1), 1.0)
+    assert np.all(out.force[:, 2] < 0)
+    limit = np.degrees(np.arctan(friction)) + cfg.physics.cone_tolerance_deg
+    assert np.all(out.angle_to_normal_deg <= limit)
+    assert np.all(out.penetration <= cfg.physics.max_penetration)
+
+
+def test_hard_case_expectations():
+    cfg = GenerateCfg()
+    cfg.physics.friction = 0.0
+    assert run_case("fingers_same_point", cfg).reason == "fingers_overlap"
+    for name in ("sharp_convex_corner", "very_small_object", "thin_wall_1mm"):
+        out = run_case(name, cfg)  # corners and tiny curved objects: the normal-cone member
+        assert out.accepted and np.all(out.angle_to_normal_deg < 0.5), name
+    grazing = run_case("grazing_85deg", cfg)
+    assert grazing.accepted
+    # 85 degrees off the normal: the frictionless force is the normal, 85 deg from the pad's z.
+    assert np.degrees(np.arctan2(-grazing.labels[0, 0], -grazing.labels[0, 1])) == pytest.approx(
+        85, abs=0.5)
+
+
+def test_thin_wall_outline_has_the_wall_it_asks_for():
+    poly = thin_wall_u(0.06, 0.001)
+    assert poly.area == pytest.approx(0.001 * (0.06 + 2 * 0.048 - 2 * 0.001), rel=1e-9)

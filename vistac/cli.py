@@ -1,0 +1,65 @@
+"""The `vistac` console command: a thin dispatcher over the sub-commands of both packages.
+
+Every sub-command lives in a command module that defines ``add_command(sub)`` (its options,
+declared from its config's fields where it has one) and a small handler turning the parsed,
+validated config into work. Only the chosen command's module is imported (so `vistac generate`
+does not pay for importing torch, nor `vistac train` for MuJoCo); `vistac --help` lists them all.
+A new sub-command is one line in `COMMANDS` plus its module.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from vistac.errors import UserError
+
+# name -> (command module with `add_command(sub)`, one line of help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "generate": ("vistac_sim.generate.command",
+                 "simulate presses and write a visuo-tactile dataset"),
+    "ingest": ("vistac_sim.recording.ingest.command",
+               "turn RH8D/FTS-3 recordings and their images into a dataset"),
+    "models": ("vistac_learn.models.command",
+               "list the model zoo with parameters and multiply-accumulates"),
+    "train": ("vistac_learn.train.command", "train a model on a dataset"),
+    "evaluate": ("vistac_learn.evaluate.command",
+                 "score a run or a baseline with the study's metrics"),
+    "demo": ("vistac_learn.demo", "generate, train, evaluate and report on a small default"),
+}
+
+
+def build_parser(argv: list[str]) -> argparse.ArgumentParser:
+    """The top-level parser; the full options of the command named in `argv` are loaded."""
+    parser = argparse.ArgumentParser(
+        prog="vistac",
+        description="Visuo-tactile datasets from MuJoCo (vistac_sim) and learning on them "
+        "(vistac_learn). `vistac COMMAND --help` shows a command's options.",
+    )
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    chosen = next((a for a in argv if not a.startswith("-")), None)
+    for name, (module, help_text) in COMMANDS.items():
+        if name == chosen:
+            importlib.import_module(module).add_command(sub)
+        else:
+            sub.add_parser(name, help=help_text)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the `vistac` command."""
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_parser(argv).parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+    except UserError as exc:  # bad input: one clear line, no traceback
+        print(f"vistac {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

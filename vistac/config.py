@@ -1,0 +1,350 @@
+"""Typed, self-validating config dataclasses: every parameter is declared once.
+
+A config is a dataclass deriving from `Config`; each field is declared with `param`: its default,
+a line of help and what it allows (``ge``/``gt``/``le``/``lt`` bounds, ``choices``). The type
+annotation says the kind of value (``float``, ``int``, ``bool``, ``str``, ``Literal[...]``,
+``tuple[float, float]``, ``tuple[str, ...]``, ``X | None``, a nested config). That one declaration
+serves everything:
+
+- construction checks every field (`Config.__post_init__`); a violation is a `ConfigError`
+  naming the field, e.g. ``hysteresis: must be >= 0, got -0.1``;
+- `apply` updates a config tree from a nested, partial mapping (a scene file, presets, CLI
+  flags); its errors name the source and the dotted key (``scene.yaml: effects.fts3.hysteresis:
+  ...``) or the flag (``--friction: ...``);
+- `add_options` declares argparse options from the fields (type, default, choices, help) and
+  `option_values` collects the parsed flags into such a mapping;
+- `to_dict` gives the JSON-able tree written into manifests and run folders.
+
+Values keep the type they were given in: an ``int`` passes as a ``float`` unchanged (a manifest
+shows what the scene file said), lists become tuples. A bound is violated only by a value that
+compares beyond it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import functools
+import os
+import types
+import typing
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any, Literal
+
+from vistac.errors import UserError
+
+_BOUNDS = {"ge": (">=", lambda v, b: v < b), "gt": (">", lambda v, b: v <= b),
+           "le": ("<=", lambda v, b: v > b), "lt": ("<", lambda v, b: v >= b)}
+
+
+class ConfigError(UserError):
+    """A field of a config that its declaration does not allow.
+
+    Attributes:
+        key: The field's name (dotted for a nested config).
+        reason: What is wrong, e.g. ``must be >= 0, got -1``.
+    """
+
+    def __init__(self, key: str, reason: str):
+        super().__init__(f"{key}: {reason}")
+        self.key, self.reason = key, reason
+
+
+def param(default: Any = dataclasses.MISSING, *, help: str = "", ge: float | None = None,
+          gt: float | None = None, le: float | None = None, lt: float | None = None,
+          choices: Iterable[Any] | None = None, why: str = "", flag: str | None = None,
+          metavar: str | tuple[str, ...] | None = None,
+          default_factory: Any = dataclasses.MISSING) -> Any:
+    """A config field: default, help and allowed values, declared once.
+
+    Args:
+        default: The default value (omit it for a required field).
+        help: One line for `--help` and readers of the code.
+        ge, gt, le, lt: Bounds of a number (of every element of a tuple of numbers).
+        choices: Allowed values (of every element of a tuple).
+        why: Said after a violated bound or choice, e.g. "the curve must stay monotone".
+        flag: The CLI option, when it is not ``--`` + the field name with dashes.
+        metavar: argparse's metavar of the option.
+        default_factory: Instead of `default`, for a nested config.
+
+    Returns:
+        A `dataclasses.field` carrying the declaration in its metadata.
+    """
+    meta = {"help": help, "ge": ge, "gt": gt, "le": le, "lt": lt, "why": why, "flag": flag,
+            "metavar": metavar, "choices": tuple(choices) if choices is not None else None}
+    return dataclasses.field(default=default, default_factory=default_factory, metadata=meta)
+
+
+class Config:
+    """Base of the config dataclasses: every field is checked when an instance is made.
+
+    Subclasses add cross-field checks by overriding `__post_init__` (calling ``super()``
+    first) and raising `ConfigError` with the field to blame.
+    """
+
+    def __post_init__(self) -> None:
+        hints = type_hints(type(self))
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            try:
+                checked = check_value(value, hints[f.name], f.metadata)
+            except ValueError as exc:
+                raise ConfigError(f.name, str(exc)) from None
+            if checked is not value:
+                object.__setattr__(self, f.name, checked)
+
+
+@functools.cache
+def type_hints(cls: type) -> dict[str, Any]:
+    """The resolved field annotations of a dataclass."""
+    return typing.get_type_hints(cls)
+
+
+def check_value(value: Any, hint: Any, meta: Mapping[str, Any] | None = None) -> Any:
+    """`value` checked against a type annotation and a `param` declaration.
+
+    Returns:
+        The value, lists turned into tuples and strings into paths where the annotation asks.
+
+    Raises:
+        ValueError: what is wrong with it (without the field's name).
+    """
+    meta = meta or {}
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (types.UnionType, typing.Union):
+        if value is None and type(None) in args:
+            return None
+        (inner,) = [a for a in args if a is not type(None)]
+        return check_value(value, inner, meta)
+    if origin is tuple:
+        if not isinstance(value, list | tuple):
+            raise ValueError(f"expected {describe(hint)}, got {value!r}")
+        items = args[:1] * len(value) if args[1:] == (Ellipsis,) else args
+        if len(items) != len(value):
+            raise ValueError(f"expected {describe(hint)}, got {value!r}")
+        return tuple(check_value(v, t, meta) for v, t in zip(value, items, strict=True))
+    if origin is Literal:
+        if value not in args:
+            raise ValueError(f"expected one of {', '.join(map(repr, args))}, got {value!r}")
+        return value
+    if dataclasses.is_dataclass(hint):
+        if not isinstance(value, hint):
+            raise ValueError(f"expected a {hint.__name__}, got {value!r}")
+        return value
+    if hint is Path:
+        if not isinstance(value, str | os.PathLike):
+            raise ValueError(f"expected a path, got {value!r}")
+        value = Path(value)
+    elif hint is not Any and not _is_a(value, hint):
+        raise ValueError(f"expected {describe(hint)}, got {value!r}")
+    _check_allowed(value, meta)
+    return value
+
+
+def _is_a(value: Any, hint: Any) -> bool:
+    if hint is float:
+        return isinstance(value, int | float) and not isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    return isinstance(value, hint)
+
+
+def _check_allowed(value: Any, meta: Mapping[str, Any]) -> None:
+    why = f" ({meta['why']})" if meta.get("why") else ""
+    choices = meta.get("choices")
+    if choices is not None and value not in choices:
+        raise ValueError(f"must be one of {', '.join(map(str, choices))}, got {value!r}{why}")
+    for key, (sign, violates) in _BOUNDS.items():
+        bound = meta.get(key)
+        if bound is not None and violates(value, bound):
+            raise ValueError(f"must be {sign} {bound}, got {value!r}{why}")
+
+
+def describe(hint: Any) -> str:
+    """A few words for the kind of value an annotation asks for."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is tuple:
+        if args[1:] == (Ellipsis,):
+            return f"a list of {_plural(args[0])}"
+        return f"a list of {len(args)} {_plural(args[0])}"
+    names = {float: "a number", int: "an integer", bool: "true or false", str: "a string"}
+    return names.get(hint, getattr(hint, "__name__", str(hint)))
+
+
+def _plural(hint: Any) -> str:
+    return {float: "numbers", int: "integers", bool: "booleans", str: "strings"}.get(hint, "items")
+
+
+def optional_config(hint: Any) -> type | None:
+    """X of an annotation ``X | None`` where X is a dataclass (a switchable part), else None."""
+    if typing.get_origin(hint) not in (types.UnionType, typing.Union):
+        return None
+    args = [a for a in typing.get_args(hint) if a is not type(None)]
+    return args[0] if len(args) == 1 and dataclasses.is_dataclass(args[0]) else None
+
+
+def apply(cfg: Any, data: Any, where: str = "", prefix: str = "",
+          labels: Mapping[str, str] | None = None) -> Any:
+    """A copy of config `cfg` updated from a nested, partial mapping, checked on the way.
+
+    A switchable part (a field ``X | None``) is switched off by ``None`` or ``false``, on with
+    its current (or default) parameters by ``true``, and on with changed parameters by a table
+    of them. A nested config takes a table; any other field takes its value.
+
+    Args:
+        cfg: The config to start from (not changed).
+        data: The mapping, e.g. a scene file's section or the values of CLI flags.
+        where: What `data` came from, e.g. a file name; prefixes the key in messages.
+        prefix: Dotted path of `cfg` in its tree (for messages).
+        labels: Name to use instead of a dotted key in messages, e.g. ``{"physics.friction":
+            "--friction"}``.
+
+    Returns:
+        The updated config.
+
+    Raises:
+        UserError: an unknown key, a table expected, or a value the field does not allow; the
+            message names `where` and the key (or its label).
+    """
+    labels = labels or {}
+
+    def label(path: str) -> str:
+        return labels.get(path) or (f"{where}: {path}" if where else path)
+
+    if not isinstance(data, Mapping):
+        raise UserError(f"{label(prefix)}: expected a table of settings, got {data!r}")
+    fields = {f.name: f for f in dataclasses.fields(cfg)}
+    hints = type_hints(type(cfg))
+    changes = {}
+    for key, value in data.items():
+        path = f"{prefix}.{key}" if prefix else str(key)
+        if key not in fields:
+            raise UserError(f"{label(path)}: unknown key (known: {', '.join(fields)})")
+        current, part = getattr(cfg, key), optional_config(hints[key])
+        if part is not None:
+            if value is None or value is False:
+                changes[key] = None
+            elif value is True:
+                changes[key] = current if current is not None else part()
+            else:
+                base = current if current is not None else part()
+                changes[key] = apply(base, value, where, path, labels)
+        elif dataclasses.is_dataclass(hints[key]):
+            changes[key] = apply(current, value, where, path, labels)
+        else:
+            changes[key] = value
+    try:
+        return dataclasses.replace(cfg, **changes)
+    except ConfigError as exc:
+        path = f"{prefix}.{exc.key}" if prefix else exc.key
+        raise UserError(f"{label(path)}: {exc.reason}") from None
+
+
+def to_dict(cfg: Any) -> dict[str, Any]:
+    """Plain JSON-able dict of a config tree (tuples become lists, paths strings)."""
+    return _jsonable(dataclasses.asdict(cfg))
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+# ------------------------------------------------------------------------------ CLI options
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows each option's default after its help, unless the default is None (none to show)."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        if action.default is None:
+            return action.help
+        return super()._get_help_string(action)
+
+
+def field_of(cls: type, path: str) -> tuple[dataclasses.Field, Any, Any]:
+    """(field, annotation, default) of a dotted field path in a config class tree.
+
+    The default is MISSING for a required field.
+    """
+    *parents, name = path.split(".")
+    for part in parents:
+        cls = type_hints(cls)[part]
+    f = next(f for f in dataclasses.fields(cls) if f.name == name)
+    default = f.default if f.default_factory is dataclasses.MISSING else f.default_factory()
+    return f, type_hints(cls)[name], default
+
+
+def flag_of(cls: type, path: str) -> str:
+    """The CLI option of a field: its declared ``flag``, else ``--`` + its name with dashes."""
+    f = field_of(cls, path)[0]
+    return f.metadata.get("flag") or "--" + f.name.replace("_", "-")
+
+
+def add_options(parser: argparse.ArgumentParser, cls: type, paths: Iterable[str]) -> None:
+    """Add one option per field path of config class `cls`, as the field declares it.
+
+    ``bool`` fields become switches, tuples ``nargs`` options, ``Literal`` fields and declared
+    choices argparse choices; a field without a default is a required option.
+    """
+    for path in paths:
+        f, hint, default = field_of(cls, path)
+        meta = f.metadata
+        kwargs: dict[str, Any] = {"help": meta.get("help") or None}
+        if typing.get_origin(hint) in (types.UnionType, typing.Union):
+            (hint,) = [a for a in typing.get_args(hint) if a is not type(None)]
+        origin, args = typing.get_origin(hint), typing.get_args(hint)
+        if hint is bool:
+            kwargs["action"] = "store_true"
+        elif origin is tuple:
+            kwargs["nargs"] = "+" if args[1:] == (Ellipsis,) else len(args)
+            kwargs["type"] = args[0]
+        elif origin is Literal:
+            kwargs["choices"] = args
+        else:
+            kwargs["type"] = hint
+        if meta.get("choices") is not None:
+            kwargs["choices"] = meta["choices"]
+        if meta.get("metavar") is not None:
+            kwargs["metavar"] = meta["metavar"]
+        if default is dataclasses.MISSING:
+            kwargs["required"] = True
+        elif hint is not bool:
+            kwargs["default"] = list(default) if isinstance(default, tuple) else default
+        parser.add_argument(flag_of(cls, path), **kwargs)
+
+
+def option_values(args: argparse.Namespace, cls: type, paths: Iterable[str]) -> dict[str, Any]:
+    """The parsed values of `add_options` options as a nested mapping for `apply`."""
+    out: dict[str, Any] = {}
+    for path in paths:
+        *parents, name = path.split(".")
+        node = out
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[name] = getattr(args, flag_of(cls, path).lstrip("-").replace("-", "_"))
+    return out
+
+
+def from_options(cls: type, args: argparse.Namespace, paths: Iterable[str], **fixed: Any) -> Any:
+    """A config made from parsed `add_options` options (plus `fixed` values), checked.
+
+    Raises:
+        UserError: a value its field does not allow, naming the option.
+    """
+    paths = list(paths)
+    values = option_values(args, cls, paths) | fixed
+    try:
+        return cls(**values)
+    except ConfigError as exc:
+        where = flag_of(cls, exc.key) if exc.key in paths else exc.key
+        raise UserError(f"{where}: {exc.reason}") from None
+
+
+def flag_labels(cls: type, paths: Iterable[str]) -> dict[str, str]:
+    """Dotted field path -> CLI option, for the messages of `apply`."""
+    return {p: flag_of(cls, p) for p in paths}

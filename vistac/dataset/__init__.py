@@ -1,0 +1,41 @@
+"""The vistac dataset format: the one owner of its names, conventions, readers and writers.
+
+A dataset directory (contracts.md) holds `manifest.json` (written last: a dataset is complete
+only once it exists with ``"complete": true``), `configs.parquet` (one row per grasp
+configuration), `presses.parquet` (one row per press, with the unit labels) and `images/`.
+`vistac generate`, `vistac ingest` and the learner all go through this package, which needs
+neither MuJoCo nor torch:
+
+- `vistac.dataset.schema`: file names, splits, the finger list, column names, `unit_labels`;
+- `vistac.dataset.files`: atomic files, deterministic Parquet tables, manifest helpers;
+- `vistac.dataset.splits`: `SplitCfg` and `assign_splits`;
+- `vistac.dataset.reader`: `open_dataset` -> `DatasetTables` (with the dataset fingerprint).
+"""
+
+from vistac.dataset.files import atomic_write_bytes, atomic_write_json, write_table
+from vistac.dataset.reader import DatasetTables, open_dataset
+from vistac.dataset.schema import (
+    FINGERS,
+    FORMAT_VERSION,
+    MANIFEST,
+    SPLITS,
+    press_row,
+    unit_labels,
+)
+from vistac.dataset.splits import SplitCfg, assign_splits
+
+__all__ = [
+    "FINGERS",
+    "FORMAT_VERSION",
+    "MANIFEST",
+    "SPLITS",
+    "DatasetTables",
+    "SplitCfg",
+    "assign_splits",
+    "atomic_write_bytes",
+    "atomic_write_json",
+    "open_dataset",
+    "press_row",
+    "unit_labels",
+    "write_table",
+]

@@ -1,0 +1,208 @@
+"""Reading a dataset directory: the manifest, both tables and the cones, checked.
+
+`open_dataset` is the one reader of the format (contracts.md) for every consumer: the learner,
+`evaluate`, benchmarks and tests. It refuses an unfinished dataset, names the file, row and
+reason of any malformed content, and sorts configurations by `config_id`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from vistac.dataset.schema import (
+    CONFIGS,
+    FINGER_RGB,
+    FINGERS,
+    IMAGES,
+    LABEL_COLUMNS,
+    MANIFEST,
+    PARTIAL,
+    PRESSES,
+    SPLITS,
+    TABLE_RGB,
+    box_columns,
+    label_columns,
+)
+from vistac.errors import UserError
+
+
+@dataclass
+class DatasetTables:
+    """A checked dataset directory, configurations sorted by `config_id`.
+
+    Attributes:
+        root: The dataset directory.
+        manifest: Parsed `manifest.json`.
+        configs: One row per configuration, sorted by `config_id`, index 0..N-1 ("row").
+        presses: One row per press.
+        cones: Per finger, a list (one per configuration row) of (K_i, 2) unit labels (r_y, r_z).
+    """
+
+    root: Path
+    manifest: dict
+    configs: pd.DataFrame
+    presses: pd.DataFrame
+    cones: dict[str, list[np.ndarray]] = field(default_factory=dict)
+    _fingerprint: str | None = None
+
+    @property
+    def render(self) -> dict:
+        """The manifest's render config (may be empty for ingested data)."""
+        return dict((self.manifest.get("config") or {}).get("render") or {})
+
+    @property
+    def table_rgb(self) -> tuple[float, float, float]:
+        """Background colour of the images in [0, 1]."""
+        return tuple(self.render.get("table_rgb", TABLE_RGB))
+
+    def finger_rgb(self, finger: str) -> tuple[float, float, float]:
+        """Colour the finger is drawn in, [0, 1]."""
+        return tuple(self.render.get(f"{finger}_rgb", FINGER_RGB[finger]))
+
+    def rows(self, split: str | None) -> np.ndarray:
+        """Row indices of a split (``None`` or ``all``: every row)."""
+        if split in (None, "all"):
+            return np.arange(len(self.configs))
+        rows = np.flatnonzero(self.configs["split"].to_numpy() == split)
+        if len(rows) == 0:
+            present = sorted(set(self.configs["split"]))
+            raise UserError(
+                f"{self.root / CONFIGS}: no configuration in split {split!r} "
+                f"(splits present: {', '.join(present)})"
+            )
+        return rows
+
+    def image_path(self, row: int) -> Path:
+        """Path of a configuration's image."""
+        return self.root / IMAGES / str(self.configs["image"].iat[row])
+
+    def has_boxes(self, finger: str) -> bool:
+        """Whether the finger's bounding-box columns exist and are all finite."""
+        cols = box_columns(finger)
+        if not all(c in self.configs for c in cols):
+            return False
+        return bool(np.isfinite(self.configs[cols].to_numpy(float)).all())
+
+    def box(self, row: int, finger: str) -> np.ndarray | None:
+        """(x, y, w, h) of the drawn finger in pixels (top-left origin), or None if absent."""
+        cols = box_columns(finger)
+        if not all(c in self.configs for c in cols):
+            return None
+        b = self.configs.loc[row, cols].to_numpy(float)
+        return b if np.isfinite(b).all() else None
+
+    def mean_label(self, finger: str) -> np.ndarray:
+        """(N, 2) renormalised mean unit label per configuration ((0, -1) if the mean is 0)."""
+        out = np.empty((len(self.configs), 2))
+        for i, cone in enumerate(self.cones[finger]):
+            m = cone.mean(axis=0)
+            norm = np.hypot(m[0], m[1])
+            out[i] = m / norm if norm > 1e-12 else (0.0, -1.0)
+        return out
+
+    def fingerprint(self) -> str:
+        """SHA-256 (hex) of the manifest, the configuration table and every image's bytes."""
+        if self._fingerprint is None:
+            h = hashlib.sha256()
+            for name in (MANIFEST, CONFIGS):
+                h.update((self.root / name).read_bytes())
+            for row in range(len(self.configs)):
+                path = self.image_path(row)
+                h.update(path.name.encode())
+                h.update(path.read_bytes() if path.exists() else b"<missing>")
+            self._fingerprint = h.hexdigest()
+        return self._fingerprint
+
+
+def _require(df: pd.DataFrame, cols: list[str], path: Path) -> None:
+    missing = [c for c in cols if c not in df.columns]
+    if missing:
+        raise UserError(f"{path}: missing column(s) {', '.join(missing)}")
+
+
+def _read_manifest(root: Path, require_complete: bool) -> dict:
+    man_path = root / MANIFEST
+    if not root.is_dir():
+        raise UserError(f"{root}: not a dataset directory")
+    if not man_path.exists():
+        if (root / PARTIAL).exists():
+            raise UserError(f"{root}: not a complete dataset: an interrupted run (resume it with "
+                            "`vistac generate --resume`)")
+        raise UserError(f"{man_path}: missing (not a vistac dataset?)")
+    try:
+        manifest = json.loads(man_path.read_text())
+    except json.JSONDecodeError as exc:
+        raise UserError(f"{man_path}: not valid JSON ({exc})") from exc
+    if require_complete and manifest.get("complete") is not True:
+        raise UserError(
+            f"{man_path}: dataset is not complete (generation unfinished or interrupted; "
+            "finish it with `vistac generate --resume` first)"
+        )
+    return manifest
+
+
+def open_dataset(root: str | Path, require_complete: bool = True) -> DatasetTables:
+    """Read and check a dataset directory.
+
+    Args:
+        root: The dataset directory (contracts.md layout).
+        require_complete: Refuse a dataset whose manifest lacks ``"complete": true``.
+
+    Returns:
+        The checked tables, configurations sorted by `config_id`, with the per-finger cones.
+
+    Raises:
+        UserError: A missing file or column, an unfinished dataset, a configuration without
+            presses, a non-finite or non-unit label (file, row and reason in the message).
+    """
+    root = Path(root)
+    manifest = _read_manifest(root, require_complete)
+    cpath, ppath = root / CONFIGS, root / PRESSES
+    for p in (cpath, ppath):
+        if not p.exists():
+            raise UserError(f"{p}: missing")
+    configs = pd.read_parquet(cpath)
+    presses = pd.read_parquet(ppath)
+    _require(configs, ["config_id", "image", "split"], cpath)
+    _require(presses, ["config_id", "repeat", *LABEL_COLUMNS], ppath)
+    if configs["config_id"].duplicated().any():
+        dup = configs.loc[configs["config_id"].duplicated(), "config_id"].iat[0]
+        raise UserError(f"{cpath}: config_id {dup} appears more than once")
+    bad_split = ~configs["split"].isin(SPLITS)
+    if bad_split.any():
+        i = int(np.flatnonzero(bad_split)[0])
+        raise UserError(
+            f"{cpath}: row {i}: split {configs['split'].iat[i]!r} is not train/val/test"
+        )
+    configs = configs.sort_values("config_id", kind="stable").reset_index(drop=True)
+    labels = presses[LABEL_COLUMNS].to_numpy(float)
+    if not np.isfinite(labels).all():
+        i = int(np.flatnonzero(~np.isfinite(labels).all(axis=1))[0])
+        raise UserError(f"{ppath}: row {i}: non-finite unit label")
+    for f in FINGERS:
+        r_y, r_z = label_columns(f)
+        norms = np.hypot(presses[r_y], presses[r_z]).to_numpy()
+        bad = np.abs(norms - 1) > 1e-3
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise UserError(f"{ppath}: row {i}: ({f}) label (r_y, r_z) is not a unit vector")
+    known = set(configs["config_id"].tolist())
+    stray = sorted(set(presses["config_id"].tolist()) - known)
+    if stray:
+        raise UserError(f"{ppath}: presses of unknown config_id {stray[0]}")
+    presses = presses.sort_values(["config_id", "repeat"], kind="stable").reset_index(drop=True)
+    groups = {int(k): g.index.to_numpy() for k, g in presses.groupby("config_id")}
+    cones: dict[str, list[np.ndarray]] = {f: [] for f in FINGERS}
+    for row, cid in enumerate(configs["config_id"].tolist()):
+        idx = groups.get(int(cid))
+        if idx is None:
+            raise UserError(f"{cpath}: row {row}: config_id {cid} has no presses")
+        for f in FINGERS:
+            cones[f].append(presses.loc[idx, label_columns(f)].to_numpy(float))
+    return DatasetTables(root, manifest, configs, presses, cones)

@@ -1,0 +1,76 @@
+"""The dataset's names and conventions (contracts.md): files, fingers, columns and unit labels.
+
+Every table column that names a finger is built here, so the simulator, `vistac ingest` and the
+learner agree on one spelling.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+FORMAT_VERSION = 1
+MANIFEST = "manifest.json"
+CONFIGS = "configs.parquet"
+PRESSES = "presses.parquet"
+IMAGES = "images"
+PARTIAL = ".partial"  # an unfinished `vistac generate` run keeps its state here
+SPLITS = ("train", "val", "test")
+FINGERS = ("index", "thumb")  # the order of every per-finger array: (index, thumb)
+
+# Colours of the drawn fingers and the table in [0, 1] (the simulator's defaults; the study's
+# photographs were painted alike), used for datasets whose manifest has no render config.
+TABLE_RGB = (0.81, 0.81, 0.81)
+FINGER_RGB = {"index": (0.0, 0.85, 0.0), "thumb": (0.9, 0.0, 0.0)}
+
+
+def columns(prefix: str, finger: str, parts: str) -> list[str]:
+    """Per-finger column names, e.g. ``columns("bbox", "index", "xywh")`` -> bbox_index_x, ..."""
+    return [f"{prefix}_{finger}_{p}" for p in parts]
+
+
+def box_columns(finger: str) -> list[str]:
+    """Pixel box (x, y, w, h; top-left origin) of the drawn finger."""
+    return columns("bbox", finger, "xywh")
+
+
+def force_columns(finger: str) -> list[str]:
+    """Measured force of a press, sensor frame, N."""
+    return columns("force", finger, "xyz")
+
+
+def clean_force_columns(finger: str) -> list[str]:
+    """Noise-free force of a configuration, sensor frame, N."""
+    return columns("force_clean", finger, "xyz")
+
+
+def normal_columns(finger: str) -> list[str]:
+    """Outward surface normal at the contact, sensor frame."""
+    return columns("normal", finger, "xyz")
+
+
+def label_columns(finger: str) -> list[str]:
+    """Unit label (r_y, r_z) of a press."""
+    return [f"r_y_{finger}", f"r_z_{finger}"]
+
+
+LABEL_COLUMNS = [c for f in FINGERS for c in label_columns(f)]
+
+
+def unit_labels(forces: np.ndarray) -> np.ndarray:
+    """(..., 2) unit labels (r_y, r_z) = (F_y, F_z) / |(F_y, F_z)| of forces (..., 3).
+
+    A zero (F_y, F_z) has no direction; it gets (0, -1), straight against the approach.
+    """
+    yz = np.asarray(forces, float)[..., 1:]
+    n = np.linalg.norm(yz, axis=-1, keepdims=True)
+    return np.where(n > 0, yz / np.where(n > 0, n, 1.0), np.array([0.0, -1.0]))
+
+
+def press_row(config_id: int, repeat: int, force: np.ndarray, label: np.ndarray) -> dict:
+    """One `presses.parquet` row: ids, the (2, 3) force and the (2, 2) unit labels per finger."""
+    row = {"config_id": config_id, "repeat": repeat}
+    for k, f in enumerate(FINGERS):
+        row |= dict(zip(force_columns(f), map(float, force[k]), strict=True))
+    for k, f in enumerate(FINGERS):
+        row |= dict(zip(label_columns(f), map(float, label[k]), strict=True))
+    return row

@@ -1,0 +1,40 @@
+"""Assignment of whole configurations (or whole objects) to train / val / test."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import pandas as pd
+
+from vistac.config import Config, param
+from vistac.dataset.schema import SPLITS
+from vistac.errors import UserError
+
+
+@dataclass
+class SplitCfg(Config):
+    """How configurations are split (whole configurations or whole objects)."""
+
+    by: Literal["config", "object"] = param("config", flag="--split-by",
+                                            help="split whole configurations or whole objects")
+    fractions: tuple[float, float, float] = param((0.7, 0.15, 0.15), flag="--split",
+                                                  metavar=("TRAIN", "VAL", "TEST"),
+                                                  help="split fractions")
+
+
+def assign_splits(configs: pd.DataFrame, by: str, fractions, seed: int) -> np.ndarray:
+    """Split labels for whole configurations, or whole objects when `by == "object"`."""
+    fr = np.asarray(fractions, float)
+    if fr.shape != (3,) or (fr < 0).any() or fr.sum() <= 0:
+        raise UserError(f"split fractions must be three non-negative numbers, got {fractions}")
+    fr = fr / fr.sum()
+    rng = np.random.default_rng([seed, 0x5B1])
+    keys = configs["object_id"] if by == "object" else configs["config_id"]
+    units = np.array(sorted(pd.unique(keys)))
+    units = units[rng.permutation(len(units))]
+    bounds = np.round(np.cumsum(fr) * len(units)).astype(int)
+    label_of = {u: SPLITS[int(np.searchsorted(bounds, i, side="right"))] for i, u in
+                enumerate(units)}
+    return np.array([label_of[k] for k in keys])

@@ -1,0 +1,201 @@
+"""Scoring a trained run (or the geometric baseline) on a split (`vistac evaluate`).
+
+For each finger: every metric of thesis.md section 6 plus angular metrics
+(`vistac_learn.metrics.cone_metrics`), printed as a table in the study's layout (thesis.md
+section 9) and saved, with the per-prediction values and the figures, into an output folder:
+
+- ``metrics.json``: settings, counts, inference speed, the scalar metrics per finger, the table.
+- ``predictions.parquet``: one row per prediction (config_id, rotation, prediction and per-sample
+  metrics of each finger).
+- ``cones_<finger>.png``, ``error_hist_<finger>.png``, ``rotation_spread_<finger>.png``.
+
+Every (configuration, rotation) pair is one prediction, as in the study (34 x 20 = 680 test
+pairs). With ``--tta`` the raw predictions of a configuration's rotations are averaged first
+(test-time augmentation), one prediction per configuration.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import torch
+
+from vistac.dataset import open_dataset
+from vistac.errors import UserError
+from vistac_learn.data.pairs import RotationCfg, fingers_of
+from vistac_learn.evaluate import plots
+from vistac_learn.evaluate.geometric import GeometricCfg, baseline_predictions
+from vistac_learn.metrics.scoring import average_over_rotations, format_table, predict, score
+from vistac_learn.train.config import TrainCfg, build_model, build_pairs, resolve_device
+
+
+def load_run(run: str | Path) -> tuple[TrainCfg, dict]:
+    """The `TrainCfg` and the whole ``config.json`` of a run folder."""
+    path = Path(run) / "config.json"
+    if not path.exists():
+        raise UserError(f"{path}: missing (not a vistac run folder)")
+    meta = json.loads(path.read_text())
+    known = {f.name for f in dataclasses.fields(TrainCfg)}
+    return TrainCfg(**{k: v for k, v in meta["train"].items() if k in known}), meta
+
+
+def load_model(
+    run: str | Path, cfg: TrainCfg, checkpoint: str, device
+) -> tuple[torch.nn.Module, int]:
+    """The run's model with weights from ``checkpoints/<checkpoint>.pt``; (model, epoch)."""
+    path = Path(run) / "checkpoints" / f"{checkpoint}.pt"
+    if not path.exists():
+        raise UserError(f"{path}: missing (has the run finished an epoch?)")
+    ck = torch.load(path, map_location=device, weights_only=False)
+    model = build_model(cfg)
+    model.load_state_dict(ck["model"])
+    return model.to(device), int(ck["epoch"])
+
+
+def _write_outputs(
+    out: Path,
+    label: str,
+    pred: np.ndarray,
+    tables,
+    rows: np.ndarray,
+    item_row: np.ndarray,
+    item_rot: np.ndarray,
+    fingers: tuple[str, ...],
+    info: dict,
+    make_plots: bool,
+) -> dict:
+    """Score, print and save (JSON, per-prediction parquet, PNGs); return the JSON dict."""
+    out.mkdir(parents=True, exist_ok=True)
+    res = score(pred, tables, rows, item_row, fingers, full=True)
+    cids = tables.configs["config_id"].to_numpy()
+    frame = {"config_id": cids[item_row], "rotation": item_rot}
+    for i, f in enumerate(fingers):
+        frame[f"pred_{f}_y"], frame[f"pred_{f}_z"] = pred[:, 2 * i], pred[:, 2 * i + 1]
+        for k, v in res[f]["per_sample"].items():
+            frame[f"{f}_{k}"] = v
+    pd.DataFrame(frame).to_parquet(out / "predictions.parquet", index=False)
+    summary = {f: {k: v for k, v in r.items() if np.isscalar(v)} for f, r in res.items()}
+    table = format_table([(f"{label} ({f})", summary[f]) for f in fingers])
+    result = {**info, "label": label, "fingers": list(fingers), "n_configs": int(len(rows)),
+              "n_predictions": int(len(pred)), "metrics": summary, "table": table}
+    (out / "metrics.json").write_text(json.dumps(result, indent=2))
+    if make_plots:
+        order = np.argsort(rows)
+        pos = order[np.searchsorted(rows[order], item_row)]
+        titles = [f"config {c}" for c in cids[rows]]
+        for i, f in enumerate(fingers):
+            ps, cones = res[f]["per_sample"], res[f]["cones"]
+            label_sets = [tables.cones[f][r] for r in rows]
+            plots.plot_cones(pred[:, 2 * i:2 * i + 2], pos, ps["in_cone"], label_sets, cones,
+                             titles, out / f"cones_{f}.png")
+            plots.plot_error_hist(ps["error_pct"], out / f"error_hist_{f}.png", f"{label} {f}:")
+            plots.plot_rotation_spread(ps["angle_deg"], pos, cones,
+                                       out / f"rotation_spread_{f}.png", f"{label} {f}:")
+    print(table)
+    return result
+
+
+def evaluate_run(
+    run: str | Path,
+    data: str | Path | None = None,
+    split: str = "test",
+    tta: bool = False,
+    checkpoint: str = "best",
+    out: str | Path | None = None,
+    make_plots: bool = True,
+    device: str | None = None,
+    progress: bool = False,
+) -> dict:
+    """Score a run's model on a split.
+
+    Args:
+        run: Run folder.
+        data: Dataset to score on (default: the run's training dataset).
+        split: Split to score.
+        tta: Average each configuration's rotations before scoring.
+        checkpoint: ``best`` (validation-selected) or ``last``.
+        out: Output folder (default ``<run>/eval/<split>[-tta]``).
+        make_plots: Write the PNG figures.
+        device: Override the run's device.
+        progress: Show progress bars.
+
+    Returns:
+        The content of ``metrics.json``.
+    """
+    cfg, meta = load_run(run)
+    if data is not None:
+        cfg = dataclasses.replace(cfg, data=str(data))
+    dev = resolve_device(device or cfg.device)
+    tables = open_dataset(cfg.data)
+    model, epoch = load_model(run, cfg, checkpoint, dev)
+    input_size = int(getattr(model, "input_size", cfg.size or 227))
+    ds = build_pairs(cfg, tables, split, input_size, progress, target="mean")
+    t0 = time.perf_counter()
+    pred = predict(model, ds, dev, cfg.eval_batch_size)
+    elapsed = time.perf_counter() - t0
+    item_row, item_rot = ds.item_row, ds.item_rot
+    if tta:
+        pred, item_row = average_over_rotations(pred, item_row)
+        item_rot = np.full(len(item_row), -1)
+    info = {"kind": "model", "run": str(run), "model": cfg.model, "variant": cfg.variant,
+            "data": str(cfg.data), "split": split, "tta": tta, "checkpoint": checkpoint,
+            "epoch": epoch, "device": str(dev), "images_per_s": len(ds) / max(elapsed, 1e-9),
+            "n_rotations": ds.images.shape[1]}
+    out = Path(out) if out is not None else Path(run) / "eval" / (split + ("-tta" if tta else ""))
+    label = f"{cfg.model}, {cfg.variant}" + (", TTA" if tta else "")
+    return _write_outputs(out, label, pred, tables, ds.rows, item_row, item_rot,
+                          fingers_of(cfg.finger), info, make_plots)
+
+
+def evaluate_baseline(
+    data: str | Path,
+    out: str | Path,
+    split: str = "test",
+    finger: str = "index",
+    rotations: RotationCfg | None = None,
+    tta: bool = False,
+    make_plots: bool = True,
+    cfg: GeometricCfg | None = None,
+    progress: bool = False,
+) -> dict:
+    """Score the geometric baseline on a split (same metrics and outputs as `evaluate_run`).
+
+    Args:
+        data: Dataset directory.
+        out: Output folder.
+        split: Split to score.
+        finger: ``index``, ``thumb`` or ``both``.
+        rotations: Rotations of each image it is applied to, as the models see them (default
+            the study's 20 fixed angles).
+        tta: Average each configuration's rotations before scoring.
+        make_plots: Write the PNG figures.
+        cfg: Baseline settings (default `GeometricCfg()`).
+        progress: Show a progress bar.
+
+    Returns:
+        The content of ``metrics.json``.
+    """
+    rotations = rotations or RotationCfg()
+    cfg = cfg or GeometricCfg()
+    tables = open_dataset(data)
+    fingers = fingers_of(finger)
+    rows = tables.rows(split)
+    t0 = time.perf_counter()
+    pred, item_row, item_rot, failures = baseline_predictions(
+        tables, rows, fingers, rotations, cfg, progress)
+    elapsed = time.perf_counter() - t0
+    if tta:
+        pred, item_row = average_over_rotations(pred, item_row)
+        item_rot = np.full(len(item_row), -1)
+    info = {"kind": "baseline", "baseline": "geometric", "settings": dataclasses.asdict(cfg),
+            "data": str(data), "split": split, "tta": tta, "failures": failures,
+            "images_per_s": len(rows) * rotations.count / max(elapsed, 1e-9),
+            "n_rotations": rotations.count}
+    label = "geometric baseline" + (", TTA" if tta else "")
+    return _write_outputs(Path(out), label, pred, tables, rows, item_row, item_rot, fingers,
+                          info, make_plots)

@@ -1,0 +1,118 @@
+"""Named effect presets and scene files (`--preset NAME`, `--scene FILE`).
+
+A preset or scene file is a partial config: ``effects`` (fields of `EffectsCfg`) and
+``recording`` (fields of `RecordingCfg`). An optional effect is switched on by a table of its
+parameters (merged over the preset's, or the defaults) or by ``true``, and off by ``false`` or
+``null``. A scene file may name its base ``preset``; the `--preset` option wins over it. Example
+(YAML; TOML works the same with ``[effects.fts3]`` tables)::
+
+    preset: lab
+    effects:
+      fts3: {hysteresis: 0.03, drift_std: 0.02}
+      finger_pull: false
+    recording: {hold_s: 1.5}
+
+Unknown keys and values of the wrong type are errors naming the file and the key.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from vistac.config import apply
+from vistac.errors import UserError
+from vistac_sim.effects import EffectsCfg
+from vistac_sim.recording.config import RecordingCfg
+
+# What each preset switches on, over the defaults of each effect's config.
+PRESETS: dict[str, dict[str, Any]] = {
+    # nothing but --noise
+    "clean": {},
+    # what the study's set-up suffered: the FTS-3 as on its datasheet, a hand-pressed finger that
+    # is pulled sideways and lands off its target, fingers drawn by hand into the photo, shadows
+    "lab": {"effects": {
+        "fts3": {"nonlinearity": 0.025, "hysteresis": 0.02, "drift_std": 0.01,
+                 "offset_std": 0.005, "sample_noise": 0.002},
+        "finger_pull": {"mean": 0.15, "spread": 0.05, "config_spread": 0.08},
+        "placement_error": {"position_std": 0.001, "angle_std_deg": 3.0},
+        "overlay_error": True,
+        "shadows": True,
+    }},
+    # more of everything, and the visual effects the study's fixed set-up did not have
+    "harsh": {"effects": {
+        # bias and noise stay below ~0.1 N at rest, so a press/rest split still works
+        "fts3": {"nonlinearity": 0.05, "hysteresis": 0.04, "drift_std": 0.015,
+                 "offset_std": 0.01, "sample_noise": 0.004},
+        "finger_pull": {"mean": 0.3, "spread": 0.15, "config_spread": 0.15},
+        "placement_error": {"position_std": 0.0025, "angle_std_deg": 8.0},
+        "overlay_error": {"offset_std": 0.004, "rotation_std_deg": 6.0},
+        "camera_jitter": True,
+        "lighting": True,
+        "shadows": True,
+        "table": True,
+    }},
+}
+# The parts of the generate config a scene file may set, with their config classes.
+SECTIONS = {"effects": EffectsCfg, "recording": RecordingCfg}
+
+
+def resolve(preset: str | None = None, scene: str | Path | None = None,
+            noise: float | None = None) -> tuple[EffectsCfg, RecordingCfg]:
+    """The effects and session config of a preset, a scene file applied over it, and `--noise`.
+
+    Args:
+        preset: preset name; None takes the scene file's ``preset`` or else ``clean``.
+        scene: YAML (.yaml, .yml) or TOML (.toml) scene file, or None.
+        noise: `--noise` when given (wins over the scene file's ``effects.noise``).
+
+    Raises:
+        UserError: an unknown preset, an unreadable file, an unknown key or a bad value.
+    """
+    data = load_scene(scene) if scene is not None else {}
+    source = str(scene) if scene is not None else "scene"
+    name = preset or data.pop("preset", None) or "clean"
+    data.pop("preset", None)
+    if not isinstance(name, str) or name not in PRESETS:
+        raise UserError(f"{source}: unknown preset {name!r} (known: {', '.join(PRESETS)})")
+    sections = {key: cls() for key, cls in SECTIONS.items()}
+    for where, layer in ((f"preset {name}", PRESETS[name]), (source, data)):
+        for key, value in layer.items():
+            if key not in sections:
+                raise UserError(f"{where}: unknown key {key!r} (known: {', '.join(sections)})")
+            sections[key] = apply(sections[key], value, where, prefix=key)
+    effects, recording = sections["effects"], sections["recording"]
+    if noise is not None:
+        effects = apply(effects, {"noise": noise}, labels={"noise": "--noise"})
+    return effects, recording
+
+
+def load_scene(path: str | Path) -> dict[str, Any]:
+    """Read a scene file into a dict (top level checked against the known sections).
+
+    Raises:
+        UserError: missing file, unknown suffix, a parse error, or a non-table top level.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise UserError(f"{path}: no such scene file")
+    suffix = path.suffix.lower()
+    try:
+        if suffix in (".yaml", ".yml"):
+            data = yaml.safe_load(path.read_text()) or {}
+        elif suffix == ".toml":
+            data = tomllib.loads(path.read_text())
+        else:
+            raise UserError(f"{path}: scene files are YAML (.yaml, .yml) or TOML (.toml)")
+    except (yaml.YAMLError, tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: cannot parse: {' '.join(str(exc).split())}") from exc
+    if not isinstance(data, dict):
+        raise UserError(f"{path}: the top level must be a table of settings")
+    unknown = set(data) - {"preset", *SECTIONS}
+    if unknown:
+        raise UserError(f"{path}: unknown key {sorted(unknown)[0]!r} (known: preset, "
+                        f"{', '.join(SECTIONS)})")
+    return dict(data)

@@ -1,0 +1,42 @@
+"""Table: the table's colour per configuration and a brightness pattern (texture) on it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import ClassVar
+
+import numpy as np
+
+from vistac.config import Config, param
+from vistac_sim.effects.registry import ConfiguredEffect, register_effect
+from vistac_sim.render.view import TableTexture, View
+
+
+@dataclass
+class TableCfg(Config):
+    """Table colour and texture per configuration."""
+
+    rgb_std: float = param(0.05, help="std of the per-channel change of the table colour")
+    texture: float = param(0.04, help="relative std of the table's brightness pattern (0: plain)")
+    texture_scale: float = param(0.004, help="m, grain size of the pattern")
+    texture_octaves: int = param(3, help="layers of halving grain size")
+
+
+@dataclass(frozen=True)
+class Table(ConfiguredEffect):
+    """Table colour per configuration and a brightness pattern (texture) on it."""
+
+    name: ClassVar[str] = "table"
+    stage: ClassVar[str] = "image"
+    cfg: TableCfg
+
+    def __call__(self, view: View, rng: np.random.Generator) -> View:
+        c = self.cfg
+        rgb = np.clip(np.asarray(view.table_rgb) + rng.normal(0.0, c.rgb_std, 3), 0.0, 1.0)
+        seed = int(rng.integers(2**31))
+        texture = TableTexture(seed, c.texture, c.texture_scale, c.texture_octaves) \
+            if c.texture > 0 else None
+        return replace(view, table_rgb=tuple(float(v) for v in rgb), texture=texture)
+
+
+register_effect("table", lambda cfg: [Table(cfg)], cfg=TableCfg)

@@ -1,0 +1,55 @@
+"""The generation config: a tree of small dataclasses, every knob declared once.
+
+Each sub-tree lives next to the code that uses it (`HandCfg` in `vistac_sim.scene`, `PhysicsCfg`
+in `vistac_sim.physics`, ...); this module assembles them. The whole tree is written into
+`manifest.json` (``to_dict``) so that a dataset states exactly how it was made, and `--resume`
+can refuse to continue a run made with other settings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from vistac.config import Config, param, to_dict
+from vistac.dataset import SplitCfg
+from vistac_sim.effects import EffectsCfg
+from vistac_sim.objects.config import ObjectsCfg
+from vistac_sim.physics.config import PhysicsCfg
+from vistac_sim.recording.config import RecordingCfg
+from vistac_sim.render.config import RenderCfg
+from vistac_sim.scene.config import HandCfg
+
+
+@dataclass
+class GraspCfg(Config):
+    """How contact targets and approach directions are drawn."""
+
+    approach_spread_deg: float = param(
+        20.0, flag="--approach-spread",
+        help="max degrees of the approach direction off the surface normal")
+    min_opposition_deg: float = param(90.0, help="min angle between index and thumb approach "
+                                      "directions")
+    max_redraws: int = param(60, help="per configuration, before the run fails loudly")
+
+
+@dataclass
+class GenerateCfg(Config):
+    """Everything `vistac generate` needs. Sub-trees default to their own defaults."""
+
+    n: int = param(200, ge=1, help="number of grasp configurations")
+    seed: int = param(0, help="seed of everything the run draws")
+    repeats: int = param(6, ge=1, help="presses per configuration")
+    chunk_size: int = param(50, help="configurations per shard (unit of work and of resume)")
+    hand: HandCfg = field(default_factory=HandCfg)
+    objects: ObjectsCfg = field(default_factory=ObjectsCfg)
+    grasp: GraspCfg = field(default_factory=GraspCfg)
+    physics: PhysicsCfg = field(default_factory=PhysicsCfg)
+    render: RenderCfg = field(default_factory=RenderCfg)
+    effects: EffectsCfg = field(default_factory=EffectsCfg)
+    recording: RecordingCfg = field(default_factory=RecordingCfg)
+    split: SplitCfg = field(default_factory=SplitCfg)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain JSON-able dict of the whole tree (tuples become lists)."""
+        return to_dict(self)

@@ -1,0 +1,157 @@
+"""One grasp configuration end to end: grasp, press(es), effects, labels, render, table rows.
+
+`make_configuration` turns a configuration id into its table rows and PNG, drawing all randomness
+from generators derived from (seed, config_id), so the result does not depend on which worker
+runs it or in which order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vistac.dataset import FINGERS, press_row, unit_labels
+from vistac.dataset.schema import box_columns, clean_force_columns, normal_columns
+from vistac_sim.effects.registry import Pipeline
+from vistac_sim.generate.config import GenerateCfg
+from vistac_sim.generate.scenes import ObjectScene, SceneCache, draw_grasp
+from vistac_sim.objects.library import SceneObject
+from vistac_sim.physics.checks import RejectedSample
+from vistac_sim.physics.press import PressResult
+from vistac_sim.recording.layout import recording_csv
+from vistac_sim.recording.session import simulate_session
+from vistac_sim.render.png import encode_png
+from vistac_sim.render.topview import finger_boxes, px_per_m
+from vistac_sim.render.view_render import render_with_effects
+from vistac_sim.scene.grasp import Grasp
+
+STREAMS = ("grasp", "scene_effects", "force_effects", "image_effects", "session",
+           "sensor_effects")
+SCENE_EFFECT_TRIES = 10  # draws of the scene effects per repeat before the unperturbed grasp
+
+
+@dataclass
+class Configuration:
+    """What one configuration adds to the dataset."""
+
+    row: dict
+    presses: list[dict]
+    png: bytes
+    recording: bytes | None = None  # RH8D/FTS-3 CSV of the session (only with --recordings)
+
+
+class ConfigStreams:
+    """Independent generators of one configuration, derived from (seed, config_id) only.
+
+    Each stream is made on first use, so the stream of a disabled effect costs nothing.
+    """
+
+    def __init__(self, seed: int, config_id: int):
+        self.key = (seed, config_id)
+        self._made: dict[str, np.random.Generator] = {}
+
+    def __getitem__(self, name: str) -> np.random.Generator:
+        if name not in self._made:
+            self._made[name] = np.random.default_rng([*self.key, STREAMS.index(name), 0x5EED])
+        return self._made[name]
+
+
+def object_index(seed: int, config_id: int, n_objects: int) -> int:
+    """Which object of the library configuration `config_id` uses."""
+    return int(np.random.SeedSequence([seed, config_id, 7]).generate_state(1, np.uint64)[0]
+               % n_objects)
+
+
+def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: GenerateCfg,
+                       pipeline: Pipeline) -> Configuration:
+    """Draw, press, check, label and render configuration `config_id`.
+
+    Raises:
+        RuntimeError: when `max_redraws` draws in a row were rejected (names the object).
+    """
+    rng = ConfigStreams(seed, config_id)
+    idx = object_index(seed, config_id, len(scenes.specs))
+    scene = scenes.get(idx)
+    try:
+        grasp, res, normal, redraws = draw_grasp(scene, rng["grasp"], cfg)
+    except RuntimeError as exc:
+        raise RuntimeError(f"configuration {config_id}: {exc}") from None
+    if pipeline.image:  # the image, its boxes and camera columns follow the sampled view
+        rgb, boxes, view_cols = render_with_effects(scene.view, scene.press.data, pipeline,
+                                                    cfg.render, rng["image_effects"])
+    else:
+        boxes = finger_boxes(scene.model, scene.press.data, scene.ids, cfg.render)
+        rgb, view_cols = scene.view.render(scene.press.data), {}
+    png = encode_png(rgb)
+    clean = res.force_sensor
+    fallbacks = 0
+    if pipeline.changes_physics:
+        solved = [_solve_repeat(scene, pipeline, grasp, rng["scene_effects"])
+                  for _ in range(cfg.repeats)]
+        fallbacks = sum(f is None for f in solved)
+        forces = np.stack([clean if f is None else f for f in solved])
+    else:
+        forces = np.broadcast_to(clean, (cfg.repeats, 2, 3)).copy()
+    forces = pipeline.apply_force(forces, rng["force_effects"])
+    recording = None
+    if pipeline.needs_series or cfg.recording.write:
+        session = simulate_session(forces, pipeline, cfg.recording, rng["session"],
+                                   rng["sensor_effects"])
+        forces = session.readings
+        recording = recording_csv(session) if cfg.recording.write else None
+    labels = unit_labels(forces)
+    row = _config_row(config_id, scene.obj, grasp, res, clean, normal, boxes, cfg)
+    row["scene_effect_fallbacks"] = fallbacks  # repeats that kept the unperturbed force
+    row["redraws"] = int(sum(redraws.values()))
+    row["redraw_reasons"] = ",".join(f"{k}:{v}" for k, v in sorted(redraws.items()))
+    row |= view_cols
+    return Configuration(
+        row=row,
+        presses=[press_row(config_id, k, forces[k], labels[k]) for k in range(cfg.repeats)],
+        png=png,
+        recording=recording,
+    )
+
+
+def _solve_repeat(scene: ObjectScene, pipeline: Pipeline, grasp: Grasp,
+                  rng: np.random.Generator) -> np.ndarray | None:
+    """(2, 3) sensor-frame force of one repeat under the scene effects.
+
+    A perturbed grasp that the press rejects is drawn again, up to `SCENE_EFFECT_TRIES` times;
+    None if every try was rejected (the caller keeps the unperturbed force and counts it in the
+    `scene_effect_fallbacks` column).
+    """
+    for _ in range(SCENE_EFFECT_TRIES):
+        try:
+            return scene.press.run(pipeline.apply_scene(grasp, rng)).force_sensor
+        except RejectedSample:
+            continue
+    return None
+
+
+def _config_row(config_id, obj: SceneObject, grasp: Grasp, res: PressResult, clean, normal,
+                boxes, cfg: GenerateCfg) -> dict:
+    row = {
+        "config_id": config_id,
+        "object_id": obj.object_id,
+        "object_family": obj.spec.family,
+        "image": f"{config_id:06d}.png",
+        "object_x": float(grasp.object_xy[0]),
+        "object_y": float(grasp.object_xy[1]),
+        "object_yaw": float(grasp.object_yaw),
+        "camera_x": 0.0,
+        "camera_y": 0.0,
+        "px_per_m": px_per_m(cfg.render),
+    }
+    for k, f in enumerate(FINGERS):
+        row |= {
+            f"target_{f}_x": grasp.target[k, 0], f"target_{f}_y": grasp.target[k, 1],
+            f"approach_{f}_x": grasp.approach[k, 0], f"approach_{f}_y": grasp.approach[k, 1],
+            f"tip_{f}_x": res.tip[k, 0], f"tip_{f}_y": res.tip[k, 1],
+            f"penetration_{f}": res.penetration[k],
+        }
+        row |= dict(zip(box_columns(f), boxes[k], strict=True))
+        row |= dict(zip(clean_force_columns(f), clean[k], strict=True))
+        row |= dict(zip(normal_columns(f), normal[k], strict=True))
+    return {k: (float(v) if isinstance(v, np.floating) else v) for k, v in row.items()}

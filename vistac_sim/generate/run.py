@@ -1,0 +1,139 @@
+"""`vistac generate`: many configurations, in worker processes, into a dataset directory.
+
+Work is cut into chunks of configurations that share one object (so a worker builds each object's
+scene and renderer once). A chunk is a pure function of (seed, config ids, config), so the dataset
+is identical whatever the number of workers, and a resumed run redoes exactly the chunks that had
+not committed their shard.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from vistac.dataset import files
+from vistac.dataset.schema import IMAGES
+from vistac_sim.effects import build_pipeline
+from vistac_sim.generate import shards
+from vistac_sim.generate.config import GenerateCfg
+from vistac_sim.generate.configuration import make_configuration, object_index
+from vistac_sim.generate.scenes import SceneCache
+from vistac_sim.objects.decomposition import default_cache_dir
+from vistac_sim.objects.library import ObjectSpec, mesh_library, procedural_library
+from vistac_sim.recording.layout import recording_name
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """One unit of work: configuration ids that all use object `object_index`."""
+
+    index: int
+    object_index: int
+    config_ids: tuple[int, ...]
+
+
+def plan_chunks(n: int, seed: int, n_objects: int, chunk_size: int) -> list[Chunk]:
+    """Group configuration ids by object, then cut each group into chunks of `chunk_size`."""
+    objs = np.array([object_index(seed, i, n_objects) for i in range(n)], dtype=int)
+    chunks = []
+    for k in range(n_objects):
+        ids = np.flatnonzero(objs == k)
+        for start in range(0, len(ids), chunk_size):
+            part = tuple(int(i) for i in ids[start:start + chunk_size])
+            chunks.append(Chunk(len(chunks), k, part))
+    return chunks
+
+
+def object_specs(cfg: GenerateCfg, seed: int) -> tuple[list[ObjectSpec], list[dict]]:
+    """The object library of a run (procedural, or user meshes) and the skipped meshes."""
+    if cfg.objects.paths:
+        return mesh_library(cfg.objects, seed, cfg.hand.height, default_cache_dir())
+    return procedural_library(cfg.objects, seed), []
+
+
+# ------------------------------------------------------------------------------ worker process
+_WORKER: dict = {}
+
+
+def _init_worker(cfg: GenerateCfg, specs: list[ObjectSpec], out: str) -> None:
+    _WORKER.update(cfg=cfg, out=Path(out), pipeline=build_pipeline(cfg.effects),
+                   scenes=SceneCache(specs, cfg, size=64, cache_dir=default_cache_dir()))
+
+
+def _run_chunk(chunk: Chunk) -> int:
+    """Make every configuration of a chunk, write its images, then commit its shard."""
+    cfg, out = _WORKER["cfg"], _WORKER["out"]
+    rows, presses = [], []
+    if cfg.recording.write:
+        (out / "recordings").mkdir(exist_ok=True)
+    for cid in chunk.config_ids:
+        c = make_configuration(cid, cfg.seed, _WORKER["scenes"], cfg, _WORKER["pipeline"])
+        files.atomic_write_bytes(out / IMAGES / c.row["image"], c.png)
+        if c.recording is not None:
+            files.atomic_write_bytes(out / "recordings" / recording_name(cid), c.recording)
+        rows.append(c.row)
+        presses += c.presses
+    cpath, ppath = shards.shard_paths(out, chunk.index)
+    files.write_table(ppath, presses)
+    files.write_table(cpath, rows)  # written last: commits the chunk
+    return len(chunk.config_ids)
+
+
+# --------------------------------------------------------------------------------- the run
+def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool = False,
+             progress: bool = True) -> dict:
+    """Generate (or resume) a dataset of `cfg.n` configurations in `out`; returns the manifest.
+
+    Args:
+        cfg: the full generation config (its seed included).
+        out: dataset folder to create (or to resume).
+        workers: worker processes; 0 means all cores, 1 runs in this process.
+        resume: continue an interrupted run made with the same settings.
+        progress: show a progress bar with rate and ETA.
+
+    Raises:
+        UserError: bad options, bad meshes (strict), or an `out` that cannot be used.
+    """
+    t0 = time.perf_counter()
+    out = Path(out)
+    workers = workers or mp.cpu_count()
+    specs, skipped = object_specs(cfg, cfg.seed)
+    run_state = {"config": cfg.to_dict(), "objects": [s.__dict__ for s in specs]}
+    done = shards.start_run(out, run_state, resume)
+    chunks = plan_chunks(cfg.n, cfg.seed, len(specs), cfg.chunk_size)
+    todo = [c for c in chunks if c.index not in done]
+    bar = tqdm(total=cfg.n, initial=sum(len(c.config_ids) for c in chunks if c.index in done),
+               unit="cfg", desc="generate", disable=not progress, smoothing=0.1)
+    if workers == 1 or len(todo) <= 1:
+        _init_worker(cfg, specs, str(out))
+        for count in map(_run_chunk, todo):
+            bar.update(count)
+        _WORKER["scenes"].close()
+    else:
+        ctx = mp.get_context("spawn")  # fresh processes: GL contexts are made inside them
+        with ctx.Pool(workers, initializer=_init_worker, initargs=(cfg, specs, str(out))) as pool:
+            for count in pool.imap_unordered(_run_chunk, todo):
+                bar.update(count)
+    bar.close()
+    manifest = {
+        "generator": "vistac generate",
+        "config": cfg.to_dict(),
+        "seed": cfg.seed,
+        "versions": files.versions("mujoco", "numpy", "trimesh"),
+        "effects": build_pipeline(cfg.effects).describe(),
+        "objects": [s.__dict__ for s in specs],
+        "skipped_meshes": skipped,
+        "render": {"image_size": cfg.render.image_size, "view_extent_m": cfg.render.view_extent,
+                   "px_per_m": cfg.render.image_size / cfg.render.view_extent,
+                   "camera_xy": [0.0, 0.0]},
+        "workers": workers,
+        "resumed": bool(resume),
+        "wall_time_s": round(time.perf_counter() - t0, 3),
+    }
+    return shards.finalize(out, len(chunks), manifest, cfg.split.by, cfg.split.fractions,
+                            cfg.seed)

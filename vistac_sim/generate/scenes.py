@@ -1,0 +1,102 @@
+"""What a worker builds once per object, and pressing a grasp on it.
+
+`ObjectScene` bundles the compiled model, the press, the renderer, the outline sampler and the
+normal look-up of one object; `SceneCache` keeps a few of them. `solve` presses one grasp and
+checks its labels; `draw_grasp` draws grasps until one passes.
+"""
+
+from __future__ import annotations
+
+from collections import Counter, OrderedDict
+
+import numpy as np
+
+from vistac_sim.effects.shadows import shadow_map_size
+from vistac_sim.generate.config import GenerateCfg
+from vistac_sim.generate.grasps import OutlineSampler
+from vistac_sim.objects.library import ObjectSpec, SceneObject, build_object
+from vistac_sim.physics.checks import RejectedSample, check_physics
+from vistac_sim.physics.normals import TriangleIndex, surface_normals
+from vistac_sim.physics.press import Press, PressResult
+from vistac_sim.render.topview import TopView
+from vistac_sim.scene.grasp import Grasp
+from vistac_sim.scene.model import compile_scene
+
+
+class ObjectScene:
+    """Everything a worker builds once per object."""
+
+    def __init__(self, obj: SceneObject, cfg: GenerateCfg, render: bool = True):
+        self.obj, self.cfg = obj, cfg
+        self.model, self.ids = compile_scene(obj, cfg)
+        self.press = Press(self.model, self.ids, cfg)
+        self.sampler = OutlineSampler(obj.section, cfg)
+        self.triangles = TriangleIndex(obj.mesh.vertices, obj.mesh.faces)
+        self.view = TopView(self.model, self.ids, cfg.render,
+                            shadow_size=shadow_map_size(cfg.effects)) if render else None
+
+    def close(self) -> None:
+        if self.view is not None:
+            self.view.close()
+
+
+class SceneCache:
+    """A small LRU of `ObjectScene`s keyed by object index (renderers are costly to keep)."""
+
+    def __init__(self, specs: list[ObjectSpec], cfg: GenerateCfg, size: int = 6, cache_dir=None):
+        self.specs, self.cfg, self.size, self.cache_dir = specs, cfg, size, cache_dir
+        self._scenes: OrderedDict[int, ObjectScene] = OrderedDict()
+
+    def get(self, index: int) -> ObjectScene:
+        if index in self._scenes:
+            self._scenes.move_to_end(index)
+            return self._scenes[index]
+        obj = build_object(self.specs[index], self.cfg.hand.height, self.cfg.objects.min_wall,
+                           self.cache_dir)
+        scene = ObjectScene(obj, self.cfg)
+        self._scenes[index] = scene
+        if len(self._scenes) > self.size:
+            self._scenes.popitem(last=False)[1].close()
+        return scene
+
+    def close(self) -> None:
+        for scene in self._scenes.values():
+            scene.close()
+        self._scenes.clear()
+
+
+def solve(scene: ObjectScene, grasp: Grasp, cfg: GenerateCfg) -> tuple[PressResult, np.ndarray]:
+    """Press, then check the noise-free forces against the mesh normals (sensor frame).
+
+    Returns:
+        The press result and the (2, 3) outward surface normals in each sensor frame.
+
+    Raises:
+        RejectedSample: from the press or the physical checks.
+    """
+    res = scene.press.run(grasp)
+    world = surface_normals(scene.triangles, grasp, res, 2 * cfg.hand.tip_half_length)
+    normal = np.einsum("kji,kj->ki", res.rotation, world)
+    check_physics(res.force_sensor, normal, cfg.physics.friction, cfg.physics.cone_tolerance_deg)
+    return res, normal
+
+
+def draw_grasp(scene: ObjectScene, rng: np.random.Generator,
+               cfg: GenerateCfg) -> tuple[Grasp, PressResult, np.ndarray, Counter]:
+    """Draw grasps until one passes every check.
+
+    Returns:
+        The grasp, its press, the sensor-frame surface normals and the rejected draws by reason.
+
+    Raises:
+        RuntimeError: when `max_redraws` draws in a row were rejected (names the object).
+    """
+    redraws: Counter = Counter()
+    for _ in range(cfg.grasp.max_redraws):
+        try:
+            grasp = scene.sampler.sample(rng)
+            return (grasp, *solve(scene, grasp, cfg), redraws)
+        except RejectedSample as exc:
+            redraws[exc.reason] += 1
+    raise RuntimeError(f"object {scene.obj.object_id} gave no valid grasp in "
+                       f"{cfg.grasp.max_redraws} draws ({dict(redraws)})")

@@ -1,0 +1,30 @@
+"""Which objects lie on the table."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from vistac.config import Config, param
+from vistac_sim.objects.outlines import PROCEDURAL_FAMILIES
+
+
+@dataclass
+class ObjectsCfg(Config):
+    """The object library of a run: procedural families drawn from the seed, or user meshes."""
+
+    families: tuple[str, ...] = param(
+        PROCEDURAL_FAMILIES, choices=PROCEDURAL_FAMILIES, metavar="FAMILY",
+        help=f"procedural families ({', '.join(PROCEDURAL_FAMILIES)})")
+    paths: tuple[str, ...] = param(
+        (), flag="--objects", metavar="PATH",
+        help="mesh files or folders (STL, OBJ, PLY, GLB) instead of the built-in procedural "
+        "families")
+    n_objects: int = param(32, help="size of the procedural object library")
+    footprint: tuple[float, float] = param(
+        (0.035, 0.075), metavar=("MIN", "MAX"),
+        help="longest top-view side of objects, metres")
+    height: tuple[float, float] = param((0.03, 0.05),
+                                        help="m, extrusion height of procedural objects")
+    min_wall: float = param(0.001, help="m, thinnest wall a procedural outline may have")
+    strict: bool = param(False, help="a bad mesh in a folder aborts the run instead of being "
+                         "skipped")

@@ -1,0 +1,130 @@
+"""Objects on the table: procedural extrusions and user meshes, with convex collision pieces.
+
+An object is described by a light, picklable `ObjectSpec` (what to build) and built into a
+`SceneObject` (meshes in the object frame: xy centred on the footprint, table at z = 0) inside the
+worker that needs it. The full-resolution mesh stays the visual and the reference for surface
+normals; MuJoCo collides the convex `pieces` (it would otherwise collide a mesh as its hull).
+"""
+
+from __future__ import annotations
+
+import colorsys
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from shapely.geometry import Polygon
+
+from vistac.errors import UserError
+from vistac_sim.objects import outlines
+from vistac_sim.objects.config import ObjectsCfg
+from vistac_sim.objects.decomposition import convex_decomposition
+from vistac_sim.objects.meshes import find_mesh_files, load_mesh, mesh_section, scale_to_footprint
+
+
+@dataclass(frozen=True)
+class ObjectSpec:
+    """What to build: a procedural family drawn from `seed`, or a mesh file."""
+
+    object_id: str
+    family: str  # a procedural family name, or "mesh"
+    seed: int
+    footprint: float  # m, longest side of the top-view outline
+    height: float  # m, extrusion height (procedural only)
+    path: str = ""  # mesh file (family "mesh")
+
+
+@dataclass
+class SceneObject:
+    """A built object, ready for the scene, grasp sampling and normal look-ups."""
+
+    spec: ObjectSpec
+    mesh: trimesh.Trimesh  # full-resolution, object frame
+    pieces: list[trimesh.Trimesh]  # convex collision pieces, object frame
+    section: Polygon  # cross-section at fingertip height (object frame, xy)
+    rgb: tuple[float, float, float]
+
+    @property
+    def object_id(self) -> str:
+        return self.spec.object_id
+
+
+def procedural_library(cfg: ObjectsCfg, seed: int) -> list[ObjectSpec]:
+    """The procedural object library of a run: `n_objects` specs cycling through the families."""
+    root = np.random.SeedSequence([seed, 0xB0B])
+    specs = []
+    for k, child in enumerate(root.spawn(cfg.n_objects)):
+        rng = np.random.default_rng(child)
+        fam = cfg.families[k % len(cfg.families)]
+        specs.append(
+            ObjectSpec(
+                object_id=f"{fam}_{k:03d}",
+                family=fam,
+                seed=int(rng.integers(2**31)),
+                footprint=float(rng.uniform(*cfg.footprint)),
+                height=float(rng.uniform(*cfg.height)),
+            )
+        )
+    return specs
+
+
+def build_object(spec: ObjectSpec, finger_height: float, min_wall: float = 0.001,
+                 cache_dir: Path | None = None) -> SceneObject:
+    """Build the meshes, collision pieces and finger-height section of one object."""
+    rng = np.random.default_rng(spec.seed)
+    rgb = _object_colour(rng)
+    if spec.family == "mesh":
+        mesh = scale_to_footprint(load_mesh(spec.path), spec.footprint)
+        section = mesh_section(mesh, finger_height, spec.path)
+        pieces = convex_decomposition(mesh, cache_dir)
+    else:
+        poly = outlines.outline(spec.family, rng, spec.footprint, min_wall)
+        return extruded_object(spec, poly, rgb)
+    return SceneObject(spec=spec, mesh=mesh, pieces=pieces, section=section, rgb=rgb)
+
+
+def extruded_object(spec: ObjectSpec, poly: Polygon,
+                    rgb: tuple[float, float, float] = (0.25, 0.3, 0.7)) -> SceneObject:
+    """An outline extruded to `spec.height`, collided as its exact convex pieces."""
+    mesh = trimesh.creation.extrude_polygon(poly, spec.height)
+    pieces = [trimesh.creation.extrude_polygon(p, spec.height)
+              for p in outlines.convex_pieces(poly)]
+    return SceneObject(spec=spec, mesh=mesh, pieces=pieces, section=poly, rgb=rgb)
+
+
+def _object_colour(rng: np.random.Generator) -> tuple[float, float, float]:
+    """A colour far from the index green and thumb red: hues of yellow, cyan, blue or purple."""
+    hue = rng.choice([rng.uniform(35, 65), rng.uniform(185, 290)]) / 360.0
+    return tuple(float(c) for c in colorsys.hsv_to_rgb(hue, rng.uniform(0.35, 0.75),
+                                                        rng.uniform(0.35, 0.8)))
+
+
+def mesh_library(cfg: ObjectsCfg, seed: int, finger_height: float,
+                 cache_dir: Path | None = None) -> tuple[list[ObjectSpec], list[dict]]:
+    """Specs for the user meshes of `cfg.paths`; bad meshes are skipped (or fatal if strict).
+
+    Each mesh is checked, scaled and decomposed once here (the decomposition is cached), so the
+    workers only read the cache. Returns the specs and the skipped files with their reasons.
+    """
+    files = find_mesh_files(cfg.paths)
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x3E5]))
+    specs, skipped = [], []
+    for k, f in enumerate(files):
+        footprint = float(rng.uniform(*cfg.footprint))
+        spec = ObjectSpec(object_id=f"{f.stem}_{k:03d}", family="mesh",
+                          seed=int(rng.integers(2**31)), footprint=footprint, height=0.0,
+                          path=str(f.resolve()))
+        try:
+            build_object(spec, finger_height, cache_dir=cache_dir)
+        except UserError as exc:
+            if cfg.strict or len(files) == 1:
+                raise
+            warnings.warn(f"skipping mesh: {exc}", stacklevel=2)
+            skipped.append({"path": str(f), "reason": str(exc)})
+            continue
+        specs.append(spec)
+    if not specs:
+        raise UserError("no usable mesh among " + ", ".join(map(str, cfg.paths)))
+    return specs, skipped

@@ -1,0 +1,127 @@
+"""The press: drive both fingertips into the object, settle, read and check the contact forces.
+
+Forces are read two independent ways and must agree: (1) summing `mj_contactForce` over the
+pad's contacts, rotated from each contact frame to the world; (2) MuJoCo's `contact` sensor with
+``reduce="netforce"`` (world frame). Both are rotated into the sensor site frame.
+Every solve is checked: MuJoCo warning counters, finite state, a settled tip, penetration depth,
+a contact on the sensor pad and none on the shaft. A failed check is a `RejectedSample`; nothing
+that MuJoCo silently reset can reach a dataset.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from vistac.dataset import FINGERS
+from vistac_sim.geometry import yaw_quat
+from vistac_sim.mj import mujoco
+from vistac_sim.physics.checks import RejectedSample
+from vistac_sim.scene.grasp import Grasp
+from vistac_sim.scene.ids import SceneIds
+
+if TYPE_CHECKING:
+    from vistac_sim.generate.config import GenerateCfg
+
+
+@dataclass
+class PressResult:
+    """A settled press, per finger (index, thumb)."""
+
+    force_sensor: np.ndarray  # (2, 3) force of the object on each pad, N, sensor frames (method 1)
+    force_sensor_check: np.ndarray  # (2, 3) from the netforce contact sensor (method 2)
+    rotation: np.ndarray  # (2, 3, 3) world-from-sensor rotations
+    tip: np.ndarray  # (2, 3) front-cap centre of each tip, world
+    penetration: np.ndarray  # (2,) deepest penetration, m
+    pad_contacts: tuple[np.ndarray, ...]  # per finger: (m, 4) contact xyz (world), normal force
+
+
+class Press:
+    """Runs presses on one compiled scene (one object); reuses its MjData."""
+
+    def __init__(self, model: mujoco.MjModel, ids: SceneIds, cfg: GenerateCfg):
+        self.model = model
+        self.data = mujoco.MjData(model)
+        self.ids = ids
+        self.cfg = cfg
+        self._f6 = np.zeros(6)
+        self._limit = cfg.hand.standoff + cfg.hand.travel
+
+    def pose(self, grasp: Grasp) -> None:
+        """Reset the data and place the object and both finger bases for `grasp`."""
+        m, d, ids, h = self.model, self.data, self.ids, self.cfg.hand
+        mujoco.mj_resetData(m, d)
+        m.body_pos[ids.object_body] = [grasp.object_xy[0], grasp.object_xy[1], 0.0]
+        m.body_quat[ids.object_body] = yaw_quat(grasp.object_yaw)
+        start = grasp.start(h.tip_radius, h.standoff)
+        for k, f in enumerate(FINGERS):
+            d.mocap_pos[ids.mocap[f]] = [start[k, 0], start[k, 1], h.height]
+            d.mocap_quat[ids.mocap[f]] = yaw_quat(np.arctan2(grasp.approach[k, 1],
+                                                             grasp.approach[k, 0]))
+            d.ctrl[ids.actuator[f]] = h.press_force
+
+    def run(self, grasp: Grasp) -> PressResult:
+        """Press both fingers for `grasp` and return the checked, settled forces.
+
+        Raises:
+            RejectedSample: with reason "start_penetrates", "mujoco_warning", "non_finite",
+                "no_contact", "shaft_contact", "not_settled" or "penetration".
+        """
+        m, d, phys = self.model, self.data, self.cfg.physics
+        self.pose(grasp)
+        mujoco.mj_forward(m, d)
+        if d.ncon and (d.contact.dist[: d.ncon] < 0).any():
+            raise RejectedSample("start_penetrates", "a finger starts inside the object")
+        mujoco.mj_step(m, d, nstep=phys.settle_steps)
+        if d.warning.number.any():
+            raise RejectedSample("mujoco_warning", _warnings(d))
+        if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
+            raise RejectedSample("non_finite", "non-finite state after settling")
+        return self._read()
+
+    def _read(self) -> PressResult:
+        m, d, ids, phys = self.model, self.data, self.ids, self.cfg.physics
+        ncon = d.ncon
+        g1 = d.contact.geom1[:ncon].tolist()
+        g2 = d.contact.geom2[:ncon].tolist()
+        force_w, force_c, tip = (np.zeros((2, 3)) for _ in range(3))
+        rot = np.zeros((2, 3, 3))
+        pen = np.zeros(2)
+        pad_contacts = []
+        for k, f in enumerate(FINGERS):
+            pad_id, shaft_id = ids.pad[f], ids.shaft[f]
+            if shaft_id in g1 or shaft_id in g2:
+                raise RejectedSample("shaft_contact", f"{f} finger touches behind the pad")
+            pad = [c for c in range(ncon) if g1[c] == pad_id or g2[c] == pad_id]
+            if not pad or d.qpos[ids.qpos[f]] >= self._limit - 1e-6:
+                raise RejectedSample("no_contact", f"{f} pad reached no surface")
+            speed = abs(d.qvel[ids.dof[f]])
+            if speed > phys.max_speed:
+                raise RejectedSample("not_settled", f"{f} tip still moves at {speed:.2e} m/s")
+            pen[k] = max(0.0, -min(d.contact.dist[c] for c in pad))
+            if pen[k] > phys.max_penetration:
+                raise RejectedSample("penetration", f"{f} pad {pen[k] * 1e3:.2f} mm deep")
+            rows = np.zeros((len(pad), 4))  # contact xyz, normal force
+            for j, c in enumerate(pad):
+                mujoco.mj_contactForce(m, d, c, self._f6)
+                # mj_contactForce gives the force of geom1 on geom2 in the contact frame.
+                f_on_geom2 = d.contact.frame[c].reshape(3, 3).T @ self._f6[:3]
+                force_w[k] += f_on_geom2 if g2[c] == pad_id else -f_on_geom2
+                rows[j, :3] = d.contact.pos[c]
+                rows[j, 3] = self._f6[0]
+            pad_contacts.append(rows)
+            rot[k] = d.site_xmat[ids.site[f]].reshape(3, 3)
+            adr = ids.sensor_adr[f]
+            # The netforce contact sensor reports the force of geom1 (the pad) on geom2 (the
+            # object) in the world frame; the pad feels the opposite.
+            force_c[k] = -rot[k].T @ d.sensordata[adr:adr + 3]
+            tip[k] = d.xpos[m.geom_bodyid[pad_id]]
+        force_sensor = np.einsum("kji,kj->ki", rot, force_w)
+        return PressResult(force_sensor, force_c, rot, tip, pen, tuple(pad_contacts))
+
+
+def _warnings(d: mujoco.MjData) -> str:
+    return ", ".join(f"{mujoco.mjtWarning(i).name} x{w.number}"
+                     for i, w in enumerate(d.warning) if w.number)

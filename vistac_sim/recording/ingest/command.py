@@ -1,0 +1,55 @@
+"""`vistac ingest`: its options (declared by `IngestCfg` and `IngestSources`) and handler."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from vistac.config import HelpFormatter, add_options, from_options
+from vistac.dataset import SplitCfg
+from vistac_sim.recording.ingest.config import ColumnMap, IngestCfg, IngestSources
+from vistac_sim.recording.ingest.run import ingest
+
+SOURCE_OPTIONS = ("recordings", "images", "labels", "labels_sheet")
+CFG_OPTIONS = ("threshold", "unit")
+CRITERIA_OPTIONS = ("min_samples", "saturation", "min_force", "allow_pulling")
+SPLIT_OPTIONS = ("by", "fractions")
+
+
+def add_command(sub: argparse._SubParsersAction) -> None:
+    """Add `vistac ingest` to the `vistac` parser."""
+    p = sub.add_parser(
+        "ingest",
+        help="turn RH8D/FTS-3 recordings (or label spreadsheets) + images into a dataset",
+        description="Split each recording into grasps at a threshold on |index F_z|, take each "
+        "grasp's first extremum beyond its mean, reject unusable grasps by documented criteria "
+        "(rejected.csv), and write the standard dataset layout. Recording NNN.csv belongs to "
+        "image NNN.png (any image type) and keeps configuration id NNN.",
+        formatter_class=HelpFormatter,
+    )
+    add_options(p, IngestSources, SOURCE_OPTIONS[:2])
+    p.add_argument("--out", type=Path, required=True, help="dataset folder to create")
+    add_options(p, IngestSources, SOURCE_OPTIONS[2:])
+    add_options(p, IngestCfg, CFG_OPTIONS)
+    c = ColumnMap()
+    p.add_argument("--columns", type=int, nargs=6, default=[*c.thumb, *c.index],
+                   metavar=("THUMB_X", "THUMB_Y", "THUMB_Z", "INDEX_X", "INDEX_Y", "INDEX_Z"),
+                   help="0-based CSV columns of the forces")
+    add_options(p, IngestCfg, CRITERIA_OPTIONS)
+    add_options(p, IngestSources, ("objects_csv",))
+    add_options(p, SplitCfg, SPLIT_OPTIONS)
+    add_options(p, IngestSources, ("seed", "image_size"))
+    p.set_defaults(func=_run_ingest)
+
+
+def _run_ingest(args: argparse.Namespace) -> int:
+    columns = ColumnMap(tuple(args.columns[:3]), tuple(args.columns[3:]))
+    cfg = from_options(IngestCfg, args, CFG_OPTIONS + CRITERIA_OPTIONS, columns=columns)
+    split = from_options(SplitCfg, args, SPLIT_OPTIONS)
+    src = from_options(IngestSources, args, (*SOURCE_OPTIONS, "objects_csv", "seed",
+                                             "image_size"), split=split)
+    manifest = ingest(src, args.out, cfg)
+    print(f"wrote {args.out}: " + json.dumps({"counts": manifest["counts"],
+                                              "rejected": manifest["rejected"]["by_reason"]}))
+    return 0

@@ -1,0 +1,79 @@
+"""Orthographic top view with MuJoCo's own renderer, and exact finger boxes in pixels.
+
+World -> pixel (camera centred on the world origin, looking straight down):
+``u = X * px_per_m + W / 2``, ``v = -Y * px_per_m + H / 2`` (image y points down).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vistac.dataset import FINGERS
+from vistac_sim.mj import mujoco
+from vistac_sim.render.boxes import boxes_from_outlines
+from vistac_sim.render.config import RenderCfg
+from vistac_sim.scene.ids import OBJECT_GROUP_COLLISION, SceneIds
+
+
+class TopView:
+    """Renders one compiled scene from its top camera. Create it inside the worker process."""
+
+    def __init__(self, model: mujoco.MjModel, ids: SceneIds, cfg: RenderCfg, shadow_size: int = 0):
+        self.model, self.ids, self.cfg = model, ids, cfg
+        model.vis.quality.shadowsize = shadow_size  # shadow map texels; 0: no shadow pass
+        self.renderer = mujoco.Renderer(model, cfg.image_size, cfg.image_size)
+        self.option = mujoco.MjvOption()
+        self.option.geomgroup[OBJECT_GROUP_COLLISION] = 0
+        self.option.sitegroup[:] = 0
+
+    def render(self, data: mujoco.MjData, segmentation: bool = False) -> np.ndarray:
+        """RGB image (H, W, 3) uint8 of the current state (or geom-id segmentation)."""
+        if segmentation:
+            self.renderer.enable_segmentation_rendering()
+        self.renderer.update_scene(data, camera=self.ids.camera, scene_option=self.option)
+        img = self.renderer.render()
+        if segmentation:
+            self.renderer.disable_segmentation_rendering()
+        return img
+
+    def close(self) -> None:
+        self.renderer.close()
+
+
+def px_per_m(cfg: RenderCfg) -> float:
+    """Pixels per metre of the top view."""
+    return cfg.image_size / cfg.view_extent
+
+
+def world_to_pixel(xy: np.ndarray, cfg: RenderCfg) -> np.ndarray:
+    """Continuous pixel coordinates (u right, v down) of world points (..., 2)."""
+    s, half = px_per_m(cfg), cfg.image_size / 2
+    xy = np.asarray(xy, float)
+    return np.stack([xy[..., 0] * s + half, -xy[..., 1] * s + half], axis=-1)
+
+
+def finger_capsules(model: mujoco.MjModel, data: mujoco.MjData,
+                    ids: SceneIds) -> list[list[tuple[np.ndarray, np.ndarray, float]]]:
+    """Per finger, its capsules (pad, shaft) as (end, end, radius) in world coordinates."""
+    out = []
+    for f in FINGERS:
+        caps = []
+        for g in (ids.pad[f], ids.shaft[f]):
+            axis = data.geom_xmat[g].reshape(3, 3)[:, 2] * model.geom_size[g, 1]
+            caps.append((data.geom_xpos[g] + axis, data.geom_xpos[g] - axis,
+                         float(model.geom_size[g, 0])))
+        out.append(caps)
+    return out
+
+
+def finger_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
+                 cfg: RenderCfg) -> np.ndarray:
+    """(2, 4) pixel boxes (x, y, w, h; top-left origin) of the visible part of each finger.
+
+    A finger's top-view outline is the union of its capsules (pad and shaft), each a segment
+    widened by its radius; the box is that outline clipped to the image, computed exactly.
+    """
+    s = px_per_m(cfg)
+    caps = [[(world_to_pixel(a[:2], cfg), world_to_pixel(b[:2], cfg), r * s) for a, b, r in f]
+            for f in finger_capsules(model, data, ids)]
+    return boxes_from_outlines(caps, cfg.image_size)

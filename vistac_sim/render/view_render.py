@@ -1,0 +1,176 @@
+"""Drawing a `View`: what the camera sees differs from the clean top view, the physics does not.
+
+Everything a view changes is applied to MuJoCo's *visual scene* (`MjvScene`) between
+``update_scene`` and ``render``, so the model and the physics state are never touched and nothing
+needs restoring:
+
+- overlay error: the pad and shaft geoms of each drawn finger are moved and turned about the
+  fingertip (the drawn finger misses where the finger really was) and, like the study's fingers
+  painted into the photograph, drawn on top of everything without a shadow (moved towards the
+  camera along its view axis, which leaves their pixels where they are);
+- camera jitter: the GL camera is shifted, scaled, tilted off vertical and rolled;
+- lighting: the headlight keeps only its ambient part and a directional key light is added;
+- shadows: that key light casts shadows (needs a shadow map, created with the renderer only for
+  scenes that ask for shadows: `vistac_sim.effects.shadows.shadow_map_size`);
+- table: the table's colour, and a brightness pattern multiplied onto the table's pixels (found
+  with a segmentation render of the same scene).
+
+Without image effects `vistac_sim.generate.configuration` keeps the plain render path.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import cv2
+import numpy as np
+
+from vistac.dataset import FINGERS
+from vistac_sim.mj import mujoco
+from vistac_sim.render.boxes import boxes_from_outlines
+from vistac_sim.render.config import RenderCfg
+from vistac_sim.render.topview import TopView, finger_capsules
+from vistac_sim.render.view import TableTexture, View, rotz
+from vistac_sim.scene.ids import SceneIds
+
+if TYPE_CHECKING:
+    from vistac_sim.effects.registry import Pipeline
+
+OVERLAY_LIFT = 0.2  # m a drawn finger is moved towards the camera (in front of any object)
+GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)  # a plain int: comparing arrays with the enum is slow
+
+
+def render_with_effects(top: TopView, data: mujoco.MjData, pipeline: Pipeline, cfg: RenderCfg,
+                        rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, dict]:
+    """Run the image effects on the clean view, then render it.
+
+    Returns:
+        (RGB image, (2, 4) boxes of the drawn fingers as the image shows them, the view's
+        configuration-table columns).
+    """
+    view = pipeline.apply_image(View.of(cfg), rng)
+    return (render_view(top, data, view), view_boxes(top.model, data, top.ids, view),
+            view.columns())
+
+
+def render_view(top: TopView, data: mujoco.MjData, view: View,
+                segmentation: bool = False) -> np.ndarray:
+    """RGB image (H, W, 3) uint8 of the current state as `view` sees it (or the segmentation).
+
+    Raises:
+        ValueError: the view asks for shadows from a renderer made without a shadow map.
+    """
+    if view.shadows and top.model.vis.quality.shadowsize <= 0:
+        raise ValueError("shadows need a renderer made with a shadow map (shadow_map_size)")
+    r = top.renderer
+    r.update_scene(data, camera=top.ids.camera, scene_option=top.option)
+    table = _apply_view(r.scene, top.model, data, top.ids, view)
+    if segmentation:
+        return _segmentation(r)
+    rgb = r.render()
+    if view.texture is not None:
+        seg = _segmentation(r)
+        mask = (seg[..., 1] == GEOM) & (seg[..., 0] == table)
+        gain = texture_pattern(view.texture, view.image_size, view.px_per_m)
+        shaded = np.clip(rgb * np.where(mask, gain, 1.0)[..., None], 0, 255)
+        rgb = np.rint(shaded).astype(np.uint8)
+    return rgb
+
+
+def _segmentation(renderer: mujoco.Renderer) -> np.ndarray:
+    renderer.enable_segmentation_rendering()
+    try:
+        return renderer.render()
+    finally:
+        renderer.disable_segmentation_rendering()
+
+
+def _apply_view(scn: mujoco.MjvScene, model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
+                view: View) -> int:
+    """Change the visual scene as `view` asks; returns the table's geom id."""
+    table = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "table")
+    pos, right, up, fwd = view.frame()
+    lift = -OVERLAY_LIFT * fwd  # towards the camera: same pixels, in front of everything
+    moves = {}
+    for f, (dx, dy, da) in zip(FINGERS, view.overlay, strict=True):
+        if dx or dy or da:
+            pivot = data.site_xpos[ids.site[f]].copy()
+            for g in (ids.pad[f], ids.shaft[f]):
+                moves[g] = (pivot, rotz(da), np.array([dx, dy, 0.0]))
+    for i in range(scn.ngeom):
+        g = scn.geoms[i]
+        if g.objtype != GEOM:
+            continue
+        if g.objid in moves:  # a drawn finger: painted over the scene, without a shadow
+            pivot, rot, shift = moves[g.objid]
+            g.pos[:] = pivot + rot @ (np.asarray(g.pos, float) - pivot) + shift + lift
+            g.mat[:] = rot @ np.asarray(g.mat, float)
+            g.castshadow = 0
+        elif g.objid == table:
+            g.rgba[:3] = view.table_rgb
+    half = view.image_size / view.px_per_m / 2
+    for cam in scn.camera:  # both eyes at the same place: a mono orthographic view
+        cam.pos[:], cam.forward[:], cam.up[:] = pos, fwd, up
+        cam.frustum_center, cam.frustum_top, cam.frustum_bottom = 0.0, half, -half
+    if view.light is not None:
+        _add_key_light(scn, view)
+    return table
+
+
+def _add_key_light(scn: mujoco.MjvScene, view: View) -> None:
+    light = view.light
+    for i in range(scn.nlight):
+        if scn.lights[i].headlight:
+            h = scn.lights[i]
+            h.ambient[:], h.diffuse[:], h.specular[:] = light.ambient, 0.0, 0.0
+    if scn.nlight >= len(scn.lights):
+        raise RuntimeError("no room for the key light in the visual scene")
+    key = scn.lights[scn.nlight]
+    scn.nlight += 1
+    key.type = mujoco.mjtLightType.mjLIGHT_DIRECTIONAL
+    key.headlight = 0
+    key.dir[:] = light.direction
+    key.pos[:] = (*view.camera.center, 0.0)  # directional: centre of the shadow map
+    key.ambient[:], key.diffuse[:], key.specular[:] = 0.0, light.diffuse, light.specular
+    key.attenuation[:] = (1.0, 0.0, 0.0)
+    key.castshadow = int(view.shadows)
+
+
+def texture_pattern(texture: TableTexture, size: int, px_per_m: float) -> np.ndarray:
+    """(size, size) brightness gain 1 + strength * (unit-std fractal noise), at least 0."""
+    rng = np.random.default_rng(texture.seed)
+    noise = np.zeros((size, size))
+    for octave in range(max(1, texture.octaves)):
+        cell = max(texture.scale * px_per_m / 2**octave, 1.0)
+        n = int(np.ceil(size / cell)) + 3
+        grid = rng.standard_normal((n, n)).astype(np.float32)
+        up = cv2.resize(grid, (int(round(n * cell)),) * 2, interpolation=cv2.INTER_CUBIC)
+        noise += up[:size, :size] * 0.5**octave
+    noise = (noise - noise.mean()) / max(noise.std(), 1e-12)
+    return np.maximum(1.0 + texture.strength * noise, 0.0)
+
+
+def view_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
+               view: View) -> np.ndarray:
+    """(2, 4) pixel boxes (x, y, w, h; top-left origin) of the visible part of each finger as
+    `view` draws it.
+
+    As `render.finger_boxes` (which it equals for the clean view), for any camera pose and
+    overlay error: each capsule is moved by the overlay, its end points are projected, and the
+    segment between them widened by the radius in pixels is its outline (an orthographic view
+    draws a sphere as a circle of the same radius); the box bounds the union of a finger's
+    outlines clipped to the image. Under a tilted camera the top of a tall object may hide a
+    sliver of a (not overlaid) finger; the box still holds the finger's whole outline.
+    """
+    s = view.px_per_m
+    caps_px = []
+    for k, (f, caps) in enumerate(zip(FINGERS, finger_capsules(model, data, ids), strict=True)):
+        dx, dy, da = view.overlay[k]
+        pivot, rot = data.site_xpos[ids.site[f]], rotz(da)
+        moved = []
+        for a, b, r in caps:
+            ends = pivot + (np.array([a, b]) - pivot) @ rot.T + np.array([dx, dy, 0.0])
+            p0, p1 = view.project(ends)
+            moved.append((p0, p1, r * s))
+        caps_px.append(moved)
+    return boxes_from_outlines(caps_px, view.image_size)

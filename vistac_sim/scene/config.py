@@ -1,0 +1,30 @@
+"""Geometry and drive of the two fingertips."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from vistac.config import Config, param
+
+
+@dataclass
+class HandCfg(Config):
+    """Geometry and drive of the two fingertips (sizes in metres, forces in newtons).
+
+    The RH8D is a human-scale hand; the distal phalanx with its FTS-3 fingertip is modelled as a
+    capsule of 9.5 mm radius (19 mm wide, the width of an adult distal phalanx) whose rounded end
+    carries the sensor pad, behind it a shaft standing in for the middle phalanx. These sizes are
+    approximations of a human-scale fingertip, not measurements of Seed Robotics CAD
+    (`sim_assets/hand/README.md`).
+    """
+
+    tip_radius: float = param(0.0095, help="radius of the tip capsule (its front cap is the pad)")
+    tip_half_length: float = param(0.008, help="half length of the tip capsule's straight part")
+    shaft_radius: float = param(0.0085, help="radius of the shaft (middle phalanx)")
+    shaft_length: float = param(0.045, help="drawn and collided middle phalanx behind the tip")
+    height: float = param(0.012, help="fingertip axis above the table top")
+    mass: float = param(0.03, help="kg, the moving fingertip body")
+    damping: float = param(4.0, help="N s/m on the slide joint, so the press settles quickly")
+    press_force: float = param(2.0, help="N, drive force along the approach direction")
+    standoff: float = param(0.003, help="m, gap between tip and target before the press")
+    travel: float = param(0.012, help='m, furthest the tip may move before "no contact"')
