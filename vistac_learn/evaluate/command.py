@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from vistac.errors import UserError
-from vistac_learn.data.pairs import FINGER_CHOICES, ROTATION_MODES, RotationCfg
+from vistac_learn.data.samples import FINGER_CHOICES, ROTATION_MODES, RotationCfg
 from vistac_learn.train.config import DEVICES
 
 
@@ -23,7 +23,8 @@ def add_command(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--baseline", choices=("geometric",), help="score a baseline instead of a run")
     p.add_argument("--data", help="dataset (default: the run's; required with --baseline)")
     p.add_argument("--split", default="test", help="split to score (default test)")
-    p.add_argument("--tta", action="store_true", help="average each configuration's rotations")
+    p.add_argument("--tta", action="store_true", help="test-time augmentation: average each configuration's rotations and its "
+                   "mirrored view")
     p.add_argument("--checkpoint", default="best", choices=("best", "last"))
     p.add_argument("--out", help="output folder (default <run>/eval/<split>[-tta], with "
                    "--baseline <data>/eval/geometric-<split>)")
@@ -34,6 +35,8 @@ def add_command(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--n-rotations", type=int, default=RotationCfg.n, help="baseline only")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
     p.add_argument("--device", choices=DEVICES, help="override the run's device")
+    p.add_argument("--cross-dataset", action="store_true",
+                   help="score the run on a --data other than the one it was trained on")
     p.set_defaults(func=_handler)
 
 
@@ -53,7 +56,8 @@ def _handler(args: argparse.Namespace) -> int:
         if not args.run:
             raise UserError("give --run RUN (or --baseline geometric --data D --out DIR)")
         res = evaluate_run(args.run, args.data, args.split, args.tta, args.checkpoint, args.out,
-                           not args.no_plots, args.device, progress=True)
+                           not args.no_plots, args.device, progress=True,
+                           cross_dataset=args.cross_dataset)
         out = args.out or str(Path(args.run) / "eval" / (args.split + ("-tta" if args.tta
                                                                         else "")))
     print(f"{res['n_predictions']} predictions of {res['n_configs']} configurations; "
