@@ -1,4 +1,4 @@
-"""vistac_learn.variants: rotation, box rotation, crops, automatic Canny, the on-disk cache."""
+"""vistac_learn.data variants and cache: rotation, box rotation, crops, Canny, the cache."""
 
 from __future__ import annotations
 

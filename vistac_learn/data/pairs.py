@@ -93,7 +93,7 @@ class PairDataset(torch.utils.data.Dataset):
         tables: The dataset.
         rows: Configuration rows of the split.
         images: uint8 array (N_all, R, C, S, S) of variant images for every configuration row
-            of `tables` (a memory map from `variants.variant_images`).
+            of `tables` (a memory map from `cache.variant_images`).
         fingers: Fingers whose labels form the target, in order (2 values per finger).
         target: ``mean``, ``press`` or ``all`` (see the module docstring).
         seed: Seed of the per-epoch press draw (``press``).
