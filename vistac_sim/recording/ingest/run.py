@@ -14,7 +14,6 @@ from vistac.config import to_dict
 from vistac.dataset import (
     FINGERS,
     FORMAT_VERSION,
-    MANIFEST,
     assign_splits,
     files,
     press_row,
@@ -129,7 +128,7 @@ def ingest(src: IngestSources, out: str | Path, cfg: IngestCfg | None = None) ->
                                                  "repeat", "reason", "detail"])
         files.atomic_write_bytes(tmp / "rejected.csv", rej_df.to_csv(index=False).encode())
         manifest = _manifest(src, cfg, cfg_df, prs_df, rej_df, dropped, check, t0)
-        files.atomic_write_json(tmp / MANIFEST, manifest)  # last
+        files.write_manifest(tmp, manifest)  # last
         if out.exists():
             out.rmdir()  # checked empty above
         os.rename(tmp, out)
