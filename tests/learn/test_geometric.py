@@ -1,4 +1,4 @@
-"""vistac_learn.baseline: the geometric baseline recovers the surface normal it assumes."""
+"""vistac_learn.evaluate.geometric: the baseline recovers the surface normal it assumes."""
 
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
 """Presets and scene files; a disabled effect is never constructed nor called."""
 
+import dataclasses
 import json
 
 import pytest
@@ -12,7 +13,7 @@ from vistac_sim.effects.finger_pull import FingerPullCfg
 from vistac_sim.effects.fts3 import Fts3Cfg
 from vistac_sim.effects.noise import ForceNoise
 from vistac_sim.effects.presets import PRESETS, resolve
-from vistac_sim.effects.registry import Effect, registered
+from vistac_sim.effects.registry import Effect, register_effect, registered
 from vistac_sim.generate import configuration
 from vistac_sim.generate.config import GenerateCfg
 
@@ -22,6 +23,18 @@ SENSOR_PARTS = {"fts3.hysteresis", "fts3.nonlinearity", "fts3.zero_offset", "fts
 
 def _names(effects: EffectsCfg) -> set[str]:
     return {e["name"] for e in build_pipeline(effects).describe()}
+
+
+def test_effects_config_is_assembled_from_the_registry():
+    keys = [r.key for r in registered()]
+    assert keys == [f.name for f in dataclasses.fields(EffectsCfg)] == [
+        "noise", "fts3", "finger_pull", "placement_error", "overlay_error", "camera_jitter",
+        "lighting", "shadows", "table"]  # the order effects run in within a stage
+    assert EffectsCfg().fts3 is None and EffectsCfg(fts3=Fts3Cfg()).fts3 == Fts3Cfg()
+    with pytest.raises(UserError, match="noise: must be >= 0"):
+        EffectsCfg(noise=-0.1)
+    with pytest.raises(ValueError, match="already registered"):
+        register_effect("noise", lambda v: [], value=0.0)
 
 
 def test_presets_parse_and_build():

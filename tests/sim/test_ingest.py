@@ -1,4 +1,4 @@
-"""`vistac ingest`: preprocessing, rejection criteria, error paths, spreadsheets, round trip."""
+"""`vistac ingest`: the dataset, error paths, spreadsheets, the round trip with generate."""
 
 from __future__ import annotations
 
@@ -9,141 +9,19 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
+from ingest_fixtures import (
+    PLATEAUS,
+    direction,
+    no_leftovers,
+    press_series,
+    write_csv,
+    write_png,
+)
 
 from vistac.dataset import SplitCfg
 from vistac.errors import UserError
-from vistac_sim.recording.ingest.config import IngestCfg, IngestSources
-from vistac_sim.recording.ingest.preprocess import (
-    REASONS,
-    preprocess,
-    representative_sample,
-    split_grasps,
-)
+from vistac_sim.recording.ingest.config import IngestSources
 from vistac_sim.recording.ingest.run import ingest
-
-N_COLS = 20  # contracts.md: thumb F at 14-16, index F at 17-19
-HEADER = ",".join(f"c{i}" for i in range(N_COLS))
-
-
-# ------------------------------------------------------------------------- synthetic data
-def press_series(plateaus, rng, noise=2.0, rest=25, rise=10, hold=40, fall=10, overshoot=0.05):
-    """(T, 2, 3) force series in mN: rest, then per plateau (index, thumb) xyz vectors a press
-    with a smooth rise, a peak `overshoot` above the plateau, the hold, a release, rest."""
-    parts = [np.zeros((rest, 2, 3))]
-    for p in plateaus:
-        p = np.asarray(p, float)
-        up = (1 - np.cos(np.linspace(0, np.pi, rise))) / 2
-        relax = 1 + overshoot * np.exp(-np.arange(hold) / 5.0)
-        down = (1 + np.cos(np.linspace(0, np.pi, fall))) / 2
-        env = np.r_[up * (1 + overshoot), relax, down, np.zeros(rest)]
-        parts.append(env[:, None, None] * p)
-    series = np.concatenate(parts)
-    return np.rint(series + rng.normal(0, noise, series.shape))
-
-
-def write_csv(path: Path, series_mn: np.ndarray) -> Path:
-    """A recording CSV in the contracts layout (other columns: filler integers)."""
-    t = len(series_mn)
-    table = np.zeros((t, N_COLS), dtype=np.int64)
-    table[:, 0] = np.arange(t) * 20
-    table[:, 1] = np.arange(t)
-    table[:, 14:17] = series_mn[:, 1]  # thumb
-    table[:, 17:20] = series_mn[:, 0]  # index
-    body = "\n".join(",".join(map(str, r)) for r in table)
-    path.write_text(HEADER + "\n" + body + "\n")
-    return path
-
-
-def write_png(path: Path, size: int = 32) -> Path:
-    cv2.imwrite(str(path), np.full((size, size, 3), 200, np.uint8))
-    return path
-
-
-def direction(p) -> np.ndarray:
-    """Unit (r_y, r_z) per finger of a (2, 3) force."""
-    yz = np.asarray(p, float)[:, 1:]
-    return yz / np.linalg.norm(yz, axis=1, keepdims=True)
-
-
-PLATEAUS = {  # config id -> per press (index xyz, thumb xyz) in mN
-    3: [[[10, 400, -1500], [0, -300, -1200]]] * 4,
-    7: [[[0, -700, -2000], [5, 250, -1800]], [[0, -650, -2100], [5, 260, -1700]],
-        [[0, -720, -1900], [5, 240, -1850]]],
-    12: [[[0, 0, -900], [0, 100, -800]]] * 5,
-}
-
-
-@pytest.fixture
-def folders(tmp_path):
-    """Recordings and images of PLATEAUS (ids 3, 7, 12)."""
-    rng = np.random.default_rng(0)
-    rec, img = tmp_path / "rec", tmp_path / "img"
-    rec.mkdir()
-    img.mkdir()
-    for cid, plateaus in PLATEAUS.items():
-        write_csv(rec / f"{cid:06d}.csv", press_series(plateaus, rng))
-        write_png(img / f"{cid:06d}.png")
-    return rec, img
-
-
-def no_leftovers(out: Path) -> None:
-    assert not out.exists()
-    assert not [p for p in out.parent.iterdir() if p.name.startswith(f".{out.name}.")]
-
-
-# --------------------------------------------------------------------------- preprocessing
-def test_split_grasps_threshold_rises_and_falls():
-    fz = np.array([0, -50, -150, -300, -120, -90, 0, -200, -200, 0, 0, 120, 0]) / 1000
-    assert split_grasps(fz, 0.1).tolist() == [[2, 5], [7, 9], [11, 12]]
-    assert split_grasps(np.zeros(5), 0.1).shape == (0, 2)
-    assert split_grasps(np.full(4, -1.0), 0.1).tolist() == [[0, 4]]
-
-
-def test_representative_sample_first_extremum_beyond_mean():
-    # trough at index 3 (beyond the mean), then a shallower local trough at 6
-    fz = np.array([-0.2, -0.8, -1.5, -2.2, -2.0, -1.9, -2.1, -1.8, -0.5])
-    assert representative_sample(fz) == 3
-    # the first local extremum that is NOT beyond the mean is skipped
-    fz = np.array([-0.2, -0.6, -0.5, -2.0, -2.5, -2.4, -1.0])
-    assert representative_sample(fz) == 4
-    # positive values: a peak; a flat top yields its first sample
-    assert representative_sample(np.array([0.2, 1.0, 2.0, 2.0, 2.0, 1.0, 0.3])) == 2
-    # monotonic: none; too short for an interior extremum: none
-    assert representative_sample(np.linspace(-0.2, -3.0, 20)) is None
-    assert representative_sample(np.array([-0.5, -1.0])) is None
-
-
-def test_each_rejection_reason(tmp_path):
-    rng = np.random.default_rng(1)
-    good = [[0, 300, -1500], [0, -200, -1200]]
-    parts = [press_series([good], rng, rest=30)]                     # 0 kept
-    blip = np.zeros((33, 2, 3))
-    blip[10:12, 0, 2] = -500                                          # 1 too_short
-    parts.append(blip)
-    parts.append(press_series([[[0, 300, -9950], [0, -200, -1200]]], rng))  # 2 saturated
-    ramp = np.zeros((60, 2, 3))
-    ramp[20:40, 0] = np.linspace(-200, -3000, 20)[:, None] * [0, 0.1, 1]
-    ramp[20:40, 1] = [0, -100, -900]                                   # 3 no_extremum
-    parts.append(ramp)
-    parts.append(press_series([[[0, 300, -1500], [0, 3, -5]]], rng, noise=0))  # 4 below_res.
-    parts.append(press_series([[[0, 300, -1500], [0, -200, 400]]], rng))        # 5 pulling
-    parts.append(press_series([good], rng)[:-25])                      # 6 kept, 7 truncated
-    parts.append(press_series([good], rng, rest=5)[:40])
-    series = np.concatenate(parts)
-    grasps = preprocess(series / 1000, IngestCfg())
-    reasons = [g.reason for g in grasps]
-    assert reasons == [None, "too_short", "saturated", "no_extremum", "below_resolution",
-                       "pulling", None, "truncated"]
-    assert [g.repeat for g in grasps] == list(range(8))
-    assert set(reasons) - {None} == set(REASONS)
-    allowed = preprocess(series / 1000, IngestCfg(allow_pulling=True))
-    assert allowed[5].reason is None
-
-
-def test_truncated_at_the_start():
-    series = np.zeros((30, 2, 3))
-    series[:15, 0, 2] = -1.0
-    assert preprocess(series, IngestCfg())[0].reason == "truncated"
 
 
 # ---------------------------------------------------------------------------- the dataset
@@ -414,16 +292,3 @@ def test_round_trip_generate_recordings_then_ingest(tmp_path):
         ia = np.arctan2(m[f"r_y_{f}_i"], -m[f"r_z_{f}_i"])
         ang = np.degrees(np.abs(np.angle(np.exp(1j * (ga - ia)))))
         assert np.median(ang) <= 1.0
-
-
-def test_windows_line_endings_and_float_cells(tmp_path):
-    from vistac_sim.recording.ingest.readers import read_recording
-
-    rng = np.random.default_rng(5)
-    series = press_series(PLATEAUS[3], rng)
-    path = write_csv(tmp_path / "a.csv", series)
-    lines = path.read_text().splitlines()
-    lines[3] = lines[3].replace(",", ", ")  # spaces after commas
-    path.write_bytes(("\r\n".join(lines) + "\r\n").encode())
-    np.testing.assert_allclose(read_recording(path, IngestCfg()), series / 1000)
-    np.testing.assert_allclose(read_recording(path, IngestCfg(unit="N")), series)

@@ -7,13 +7,19 @@ configuration), `presses.parquet` (one row per press, with the unit labels) and 
 neither MuJoCo nor torch:
 
 - `vistac.dataset.schema`: file names, splits, the finger list, column names, `unit_labels`;
-- `vistac.dataset.files`: atomic files, deterministic Parquet tables, manifest helpers;
+- `vistac.dataset.files`: atomic files, deterministic Parquet tables, the manifest's parts;
 - `vistac.dataset.splits`: `SplitCfg` and `assign_splits`;
-- `vistac.dataset.reader`: `open_dataset` -> `DatasetTables` (with the dataset fingerprint).
+- `vistac.dataset.reader`: `read_manifest`, `open_dataset` -> `DatasetTables` (with the dataset
+  fingerprint).
 """
 
-from vistac.dataset.files import atomic_write_bytes, atomic_write_json, write_table
-from vistac.dataset.reader import DatasetTables, open_dataset
+from vistac.dataset.files import (
+    atomic_write_bytes,
+    atomic_write_json,
+    write_manifest,
+    write_table,
+)
+from vistac.dataset.reader import DatasetTables, open_dataset, read_manifest
 from vistac.dataset.schema import (
     FINGERS,
     FORMAT_VERSION,
@@ -36,6 +42,8 @@ __all__ = [
     "atomic_write_json",
     "open_dataset",
     "press_row",
+    "read_manifest",
     "unit_labels",
+    "write_manifest",
     "write_table",
 ]

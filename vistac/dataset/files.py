@@ -13,7 +13,7 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from vistac.dataset.schema import SPLITS
+from vistac.dataset.schema import MANIFEST, SPLITS
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
@@ -27,6 +27,11 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
 def atomic_write_json(path: Path, obj: Any) -> None:
     """Write `obj` as indented JSON with sorted keys (the manifest's format), atomically."""
     atomic_write_bytes(path, (json.dumps(obj, indent=2, sort_keys=True) + "\n").encode())
+
+
+def write_manifest(root: Path, manifest: dict[str, Any]) -> None:
+    """Write a dataset's `manifest.json`: its last file, the mark of a complete dataset."""
+    atomic_write_json(root / MANIFEST, manifest)
 
 
 def write_table(path: Path, rows: list[dict] | pd.DataFrame) -> None:

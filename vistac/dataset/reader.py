@@ -126,7 +126,13 @@ def _require(df: pd.DataFrame, cols: list[str], path: Path) -> None:
         raise UserError(f"{path}: missing column(s) {', '.join(missing)}")
 
 
-def _read_manifest(root: Path, require_complete: bool) -> dict:
+def read_manifest(root: Path, require_complete: bool = True) -> dict:
+    """The parsed `manifest.json` of a dataset directory.
+
+    Raises:
+        UserError: no such folder, no manifest (an interrupted run is named as such), invalid
+            JSON, or (with `require_complete`) a dataset not marked complete.
+    """
     man_path = root / MANIFEST
     if not root.is_dir():
         raise UserError(f"{root}: not a dataset directory")
@@ -162,7 +168,7 @@ def open_dataset(root: str | Path, require_complete: bool = True) -> DatasetTabl
             presses, a non-finite or non-unit label (file, row and reason in the message).
     """
     root = Path(root)
-    manifest = _read_manifest(root, require_complete)
+    manifest = read_manifest(root, require_complete)
     cpath, ppath = root / CONFIGS, root / PRESSES
     for p in (cpath, ppath):
         if not p.exists():

@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 
 from vistac.dataset import FINGERS
+from vistac.dataset.schema import TABLE_RGB
 from vistac.errors import UserError
 
 MODES = ("color", "edge")
@@ -185,7 +186,7 @@ def render_variant(
     boxes: dict[str, np.ndarray | None],
     angle_deg: float,
     cfg: VariantCfg,
-    table_rgb=(0.81, 0.81, 0.81),
+    table_rgb=TABLE_RGB,
     edges: np.ndarray | None = None,
 ) -> np.ndarray:
     """One variant image of one base image at one angle.

@@ -1,13 +1,61 @@
-"""`vistac evaluate`: its options and handler (a run, or the geometric baseline)."""
+"""`vistac evaluate`: its options (declared by `EvaluateCfg`) and handler (a run, or the
+geometric baseline)."""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
-from vistac.errors import UserError
+from vistac.config import Config, ConfigError, HelpFormatter, add_options, from_options, param
 from vistac_learn.data.samples import FINGER_CHOICES, ROTATION_MODES, RotationCfg
 from vistac_learn.train.config import DEVICES
+
+
+@dataclass
+class EvaluateCfg(Config):
+    """What `vistac evaluate` scores, on which split, and where the results go."""
+
+    run: str | None = param(None, help="run folder (from `vistac train`)")
+    baseline: Literal["geometric"] | None = param(None, help="score a baseline instead of a run")
+    data: str | None = param(None, help="dataset (default: the run's; required with --baseline)")
+    split: str = param("test", help="split to score")
+    tta: bool = param(False, help="test-time augmentation: average each configuration's "
+                      "rotations and its mirrored view")
+    checkpoint: Literal["best", "last"] = param("best", help="the run's checkpoint")
+    out: str | None = param(None, help="output folder (default <run>/eval/<split>[-tta], with "
+                            "--baseline <data>/eval/geometric-<split>)")
+    finger: str = param("index", choices=FINGER_CHOICES, help="baseline only: fingers to predict")
+    rotations: str = param(RotationCfg.mode, choices=ROTATION_MODES,
+                           help="baseline only: rotation set")
+    n_rotations: int = param(RotationCfg.n, help="baseline only: angles per configuration")
+    no_plots: bool = param(False, help="skip the PNG figures")
+    device: str | None = param(None, choices=DEVICES, help="override the run's device")
+    cross_dataset: bool = param(False, help="score the run on a --data other than the one it "
+                                "was trained on")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.baseline and self.run:
+            raise ConfigError("baseline", "give either --run or --baseline, not both")
+        if self.baseline and not self.data:
+            raise ConfigError("baseline", "needs --data")
+        if not self.baseline and not self.run:
+            raise ConfigError("run", "required (or --baseline geometric --data D --out DIR)")
+
+    @property
+    def out_dir(self) -> Path:
+        """The output folder, its default filled in."""
+        if self.out:
+            return Path(self.out)
+        if self.baseline:
+            return Path(self.data) / "eval" / f"geometric-{self.split}"
+        return Path(self.run) / "eval" / (self.split + ("-tta" if self.tta else ""))
+
+
+OPTIONS = tuple(f.name for f in dataclasses.fields(EvaluateCfg))
 
 
 def add_command(sub: argparse._SubParsersAction) -> None:
@@ -18,48 +66,24 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         description="Score a trained run's best checkpoint, or the non-learned geometric "
         "baseline, on a dataset split: every thesis section-6 metric plus angular metrics per "
         "finger, a table in the study's layout, metrics.json, predictions.parquet and figures.",
+        formatter_class=HelpFormatter,
     )
-    p.add_argument("--run", help="run folder (from `vistac train`)")
-    p.add_argument("--baseline", choices=("geometric",), help="score a baseline instead of a run")
-    p.add_argument("--data", help="dataset (default: the run's; required with --baseline)")
-    p.add_argument("--split", default="test", help="split to score (default test)")
-    p.add_argument("--tta", action="store_true", help="test-time augmentation: average each configuration's rotations and its "
-                   "mirrored view")
-    p.add_argument("--checkpoint", default="best", choices=("best", "last"))
-    p.add_argument("--out", help="output folder (default <run>/eval/<split>[-tta], with "
-                   "--baseline <data>/eval/geometric-<split>)")
-    p.add_argument("--finger", default="index", choices=FINGER_CHOICES,
-                   help="baseline only: fingers to predict")
-    p.add_argument("--rotations", default=RotationCfg.mode, choices=ROTATION_MODES,
-                   help="baseline only: rotation set")
-    p.add_argument("--n-rotations", type=int, default=RotationCfg.n, help="baseline only")
-    p.add_argument("--no-plots", action="store_true", help="skip the PNG figures")
-    p.add_argument("--device", choices=DEVICES, help="override the run's device")
-    p.add_argument("--cross-dataset", action="store_true",
-                   help="score the run on a --data other than the one it was trained on")
+    add_options(p, EvaluateCfg, OPTIONS)
     p.set_defaults(func=_handler)
 
 
 def _handler(args: argparse.Namespace) -> int:
     from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 
-    if args.baseline:
-        if args.run:
-            raise UserError("give either --run or --baseline, not both")
-        if not args.data:
-            raise UserError("--baseline needs --data")
-        out = args.out or str(Path(args.data) / "eval" / f"geometric-{args.split}")
-        res = evaluate_baseline(args.data, out, args.split, args.finger,
-                                RotationCfg(args.rotations, args.n_rotations), args.tta,
-                                not args.no_plots, progress=True)
+    cfg = from_options(EvaluateCfg, args, OPTIONS)
+    if cfg.baseline:
+        res = evaluate_baseline(cfg.data, cfg.out_dir, cfg.split, cfg.finger,
+                                RotationCfg(cfg.rotations, cfg.n_rotations), cfg.tta,
+                                not cfg.no_plots, progress=True)
     else:
-        if not args.run:
-            raise UserError("give --run RUN (or --baseline geometric --data D --out DIR)")
-        res = evaluate_run(args.run, args.data, args.split, args.tta, args.checkpoint, args.out,
-                           not args.no_plots, args.device, progress=True,
-                           cross_dataset=args.cross_dataset)
-        out = args.out or str(Path(args.run) / "eval" / (args.split + ("-tta" if args.tta
-                                                                        else "")))
+        res = evaluate_run(cfg.run, cfg.data, cfg.split, cfg.tta, cfg.checkpoint, cfg.out,
+                           not cfg.no_plots, cfg.device, progress=True,
+                           cross_dataset=cfg.cross_dataset)
     print(f"{res['n_predictions']} predictions of {res['n_configs']} configurations; "
-          f"results in {out}")
+          f"results in {cfg.out_dir}")
     return 0

@@ -16,7 +16,7 @@ from pathlib import Path
 import pandas as pd
 
 from vistac.dataset import FORMAT_VERSION, MANIFEST, assign_splits
-from vistac.dataset.files import atomic_write_json, table_counts, write_table
+from vistac.dataset.files import atomic_write_json, table_counts, write_manifest, write_table
 from vistac.dataset.schema import CONFIGS, IMAGES, PARTIAL, PRESSES
 from vistac.errors import UserError
 
@@ -87,6 +87,6 @@ def finalize(out: Path, n_chunks: int, manifest: dict, split_by: str, fractions,
     manifest = {**manifest, "format_version": FORMAT_VERSION, "complete": True, "counts": counts,
                 "redraws": {"total": int(cfg_df["redraws"].sum()),
                             "by_reason": dict(sorted(reasons.items()))}}
-    atomic_write_json(out / MANIFEST, manifest)
+    write_manifest(out, manifest)
     shutil.rmtree(out / PARTIAL, ignore_errors=True)
     return manifest

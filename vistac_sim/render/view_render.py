@@ -155,7 +155,7 @@ def view_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
     """(2, 4) pixel boxes (x, y, w, h; top-left origin) of the visible part of each finger as
     `view` draws it.
 
-    As `render.finger_boxes` (which it equals for the clean view), for any camera pose and
+    As `topview.finger_boxes` (which it equals for the clean view), for any camera pose and
     overlay error: each capsule is moved by the overlay, its end points are projected, and the
     segment between them widened by the radius in pixels is its outline (an orthographic view
     draws a sphere as a circle of the same radius); the box bounds the union of a finger's

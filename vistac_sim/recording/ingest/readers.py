@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from vistac.dataset import FINGERS
+from vistac.dataset.schema import LABEL_COLUMNS
 from vistac.errors import UserError
 from vistac_sim.recording.ingest.config import UNITS, IngestCfg
 
@@ -118,8 +119,7 @@ def read_label_sheet(path: Path, sheet: str | None = None) -> pd.DataFrame:
     raise_all(errors)
     if not rows:
         raise UserError(f"{path}: no label rows")
-    return pd.DataFrame(rows, columns=["image", "row", "r_y_index", "r_z_index", "r_y_thumb",
-                                       "r_z_thumb"])
+    return pd.DataFrame(rows, columns=["image", "row", *LABEL_COLUMNS])
 
 
 def _number(cell) -> float | None:

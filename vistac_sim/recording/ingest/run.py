@@ -14,7 +14,6 @@ from vistac.config import to_dict
 from vistac.dataset import (
     FINGERS,
     FORMAT_VERSION,
-    MANIFEST,
     assign_splits,
     files,
     press_row,
@@ -26,6 +25,7 @@ from vistac.dataset.schema import (
     PRESSES,
     box_columns,
     clean_force_columns,
+    label_columns,
     normal_columns,
 )
 from vistac.errors import UserError
@@ -128,7 +128,7 @@ def ingest(src: IngestSources, out: str | Path, cfg: IngestCfg | None = None) ->
                                                  "repeat", "reason", "detail"])
         files.atomic_write_bytes(tmp / "rejected.csv", rej_df.to_csv(index=False).encode())
         manifest = _manifest(src, cfg, cfg_df, prs_df, rej_df, dropped, check, t0)
-        files.atomic_write_json(tmp / MANIFEST, manifest)  # last
+        files.write_manifest(tmp, manifest)  # last
         if out.exists():
             out.rmdir()  # checked empty above
         os.rename(tmp, out)
@@ -164,7 +164,7 @@ def _sheet_presses(cid: int, rows: pd.DataFrame, path: Path) -> tuple[list[dict]
     """Presses from spreadsheet rows (renormalised); rows with a zero vector are rejected."""
     out, rejected = [], []
     for k, r in enumerate(rows.itertuples(index=False)):
-        vec = np.array([[r.r_y_index, r.r_z_index], [r.r_y_thumb, r.r_z_thumb]], float)
+        vec = np.array([[getattr(r, c) for c in label_columns(f)] for f in FINGERS], float)
         norm = np.linalg.norm(vec, axis=1)
         if (norm < 1e-9).any():
             f = FINGERS[int(np.argmax(norm < 1e-9))]
@@ -189,7 +189,7 @@ def _check_against_sheet(cfg_df: pd.DataFrame, prs_df: pd.DataFrame,
     summary = {"configs_compared": int((cfg_df["sheet_grasps"] > 0).sum()),
                "grasp_count_mismatch": int((cfg_df["sheet_grasps"] != cfg_df["n_kept"]).sum())}
     for f in FINGERS:
-        cols = [f"r_y_{f}", f"r_z_{f}"]
+        cols = label_columns(f)
         ours = prs_df.groupby("config_id")[cols].mean()
         theirs = sheet.groupby("stem")[cols].mean()
         ang = []
