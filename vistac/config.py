@@ -288,8 +288,9 @@ def flag_of(cls: type, path: str) -> str:
 def add_options(parser: argparse.ArgumentParser, cls: type, paths: Iterable[str]) -> None:
     """Add one option per field path of config class `cls`, as the field declares it.
 
-    ``bool`` fields become switches (``--x``, and ``--no-x`` when on by default), tuples ``nargs`` options, ``Literal`` fields and declared
-    choices argparse choices; a field without a default is a required option.
+    ``bool`` fields become switches (``--x``, and ``--no-x`` too when on by default), tuples
+    ``nargs`` options, ``Literal`` fields and declared choices argparse choices; a field without
+    a default is a required option.
     """
     for path in paths:
         f, hint, default = field_of(cls, path)
