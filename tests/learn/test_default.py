@@ -78,8 +78,8 @@ def test_sanity_a_model_fits_64_samples(generated, tmp_path, protocol, model, ep
 
 
 def test_default_training_beats_a_mean_predictor(generated, tmp_path):
-    run = train(protocol_cfg("default", str(generated), str(tmp_path / "run"), epochs=15,
-                             device="cpu"), progress=False)
+    run = train(protocol_cfg("default", str(generated), str(tmp_path / "run"), epochs=25,
+                             batch_size=16, device="cpu"), progress=False)
     res = evaluate_run(run, split="test", make_plots=False)
     t = open_dataset(generated)
     for f in ("index", "thumb"):

@@ -4,7 +4,7 @@ Two protocols, each a complete set of defaults (every option overrides either):
 
 - ``default``: the project's recipe. The ``tip`` view (each finger's fingertip crop, found in
   the image and turned so that the finger points up) and `tipnet`, both fingers through one
-  network; AdamW with a one-cycle learning-rate schedule, batches of 64, 30 epochs; mirror and
+  network; AdamW with a one-cycle learning-rate schedule, batches of 32, 30 epochs; mirror and
   crop-jitter augmentation drawn per batch; the best epoch by the validation median angle to
   the cone mean.
 - ``study``: the reference study's protocol (thesis.md section 8): SchoeConv100-V3(FC160) on
@@ -56,7 +56,7 @@ class TrainCfg(Config):
     finger: str = param("both", choices=FINGER_CHOICES,
                         help="finger(s) whose labels are the target (2 outputs per finger)")
     epochs: int = param(30, ge=1, le=100_000, help="epochs to train")
-    batch_size: int = param(64, ge=1, le=65_536, help="samples per optimiser step")
+    batch_size: int = param(32, ge=1, le=65_536, help="samples per optimiser step")
     optimizer: str = param("adamw", choices=OPTIMIZERS, help="optimiser")
     lr: float = param(3e-3, gt=0, le=10, help="learning rate (the peak of a one-cycle schedule)")
     weight_decay: float = param(1e-4, ge=0, le=1, help="weight decay")
