@@ -58,7 +58,7 @@ class TrainCfg(Config):
     epochs: int = param(30, ge=1, le=100_000, help="epochs to train")
     batch_size: int = param(32, ge=1, le=65_536, help="samples per optimiser step")
     optimizer: str = param("adamw", choices=OPTIMIZERS, help="optimiser")
-    lr: float = param(3e-3, gt=0, le=10, help="learning rate (the peak of a one-cycle schedule)")
+    lr: float = param(3e-3, gt=0, le=1e6, help="learning rate (the peak of a one-cycle schedule)")
     weight_decay: float = param(1e-4, ge=0, le=1, help="weight decay")
     schedule: str = param("onecycle", choices=SCHEDULES, help="learning-rate schedule")
     seed: int = param(0, ge=0, lt=2**32, help="seed of weights, sample order, draws, augmentation")

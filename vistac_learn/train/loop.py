@@ -105,7 +105,8 @@ def evaluate_loss(model, ds, device, batch_size: int) -> tuple[float, np.ndarray
 def _check_resume(cfg: TrainCfg, out: Path, fingerprint: str) -> None:
     saved = json.loads((out / "config.json").read_text())
     mine = asdict(cfg)
-    diff = [k for k in mine if k not in ("epochs", "out") and saved["train"].get(k) != mine[k]]
+    diff = [k for k in mine if k not in ("epochs", "out", "data", "cache_dir")
+            and saved["train"].get(k) != mine[k]]
     if diff:
         raise UserError(f"{out / 'config.json'}: --resume with different settings "
                         f"({', '.join(diff)})")
@@ -232,7 +233,7 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
                 if not torch.isfinite(loss):
                     raise UserError(
                         f"epoch {epoch + 1}, batch {b + 1}: the training loss is "
-                        f"{float(loss)}; training diverged; lower --lr (now {cfg.lr:g})")
+                        f"{float(loss.detach())}; training diverged; lower --lr (now {cfg.lr:g})")
                 loss.backward()
                 opt.step()
                 sched.step()
