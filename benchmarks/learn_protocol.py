@@ -32,11 +32,11 @@ import torch
 
 from vistac.cli import main as vistac_main
 from vistac.dataset import open_dataset
-from vistac_learn.data.pairs import RotationCfg
+from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.metrics.scoring import ANGLE_COLUMNS, STUDY_COLUMNS
 from vistac_learn.models import model_info
-from vistac_learn.train.config import TrainCfg
+from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.loop import train
 
 DEFAULT_MODELS = ("schoeconv100-v3-fc160", "alexnet-1x1", "smallconv", "resnet-tiny")
@@ -89,11 +89,11 @@ def run_protocol(args: argparse.Namespace) -> dict:
     entries = []
     for name in args.models:
         run = out / "runs" / name
-        cfg = TrainCfg(data=str(data), out=str(run), model=name, variant=args.variant,
-                       finger="index", epochs=args.epochs, batch_size=args.batch_size,
-                       lr=args.lr, weight_decay=args.weight_decay, seed=args.seed,
-                       n_rotations=args.n_rotations, device="cpu",
-                       cache_dir=str(out / "cache"))
+        cfg = protocol_cfg("study", str(data), str(run), model=name, variant=args.variant,
+                           epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
+                           weight_decay=args.weight_decay, seed=args.seed,
+                           n_rotations=args.n_rotations, device="cpu",
+                           cache_dir=str(out / "cache"))
         done = len(_epoch_rows(run))
         if done < args.epochs:
             print(f"== {name}: training {args.epochs} epochs", flush=True)
@@ -114,7 +114,7 @@ def run_protocol(args: argparse.Namespace) -> dict:
         })
     print("== geometric baseline", flush=True)
     bl = evaluate_baseline(data, out / "baseline", split="test", finger="index",
-                           rotations=RotationCfg("fixed", args.n_rotations))
+                           rotations=RotationCfg("fixed", args.n_rotations, 18.0))
     entries.append({"label": "geometric baseline (non-learned)", "model": "geometric",
                     "kind": "baseline", "metrics": bl["metrics"]["index"],
                     "train_s_per_epoch": None, "images_per_s": bl["images_per_s"],

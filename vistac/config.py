@@ -288,8 +288,9 @@ def flag_of(cls: type, path: str) -> str:
 def add_options(parser: argparse.ArgumentParser, cls: type, paths: Iterable[str]) -> None:
     """Add one option per field path of config class `cls`, as the field declares it.
 
-    ``bool`` fields become switches, tuples ``nargs`` options, ``Literal`` fields and declared
-    choices argparse choices; a field without a default is a required option.
+    ``bool`` fields become switches (``--x``, and ``--no-x`` too when on by default), tuples
+    ``nargs`` options, ``Literal`` fields and declared choices argparse choices; a field without
+    a default is a required option.
     """
     for path in paths:
         f, hint, default = field_of(cls, path)
@@ -298,8 +299,8 @@ def add_options(parser: argparse.ArgumentParser, cls: type, paths: Iterable[str]
         if typing.get_origin(hint) in (types.UnionType, typing.Union):
             (hint,) = [a for a in typing.get_args(hint) if a is not type(None)]
         origin, args = typing.get_origin(hint), typing.get_args(hint)
-        if hint is bool:
-            kwargs["action"] = "store_true"
+        if hint is bool:  # a switch; one that defaults to on gets its --no- form too
+            kwargs["action"] = argparse.BooleanOptionalAction if default is True else "store_true"
         elif origin is tuple:
             kwargs["nargs"] = "+" if args[1:] == (Ellipsis,) else len(args)
             kwargs["type"] = args[0]

@@ -1,8 +1,9 @@
 """`vistac demo`: the main job end to end on a small default, with a report.
 
-Generates a small simulated dataset, trains one of the study's models on its edge-index variant,
-evaluates it and the geometric baseline on the test split, and writes `report.md` with the
-study-layout tables and figures. Re-running reuses what is already done (the dataset, a finished
+Generates a small simulated dataset (objects split between train, validation and test), trains
+the default model (`tipnet` on fingertip crops, both fingers), evaluates it and the geometric
+baseline on the held-out objects, and writes `report.md` with the study-layout tables and
+figures. Re-running reuses what is already done (the dataset, a finished
 or interrupted training run).
 """
 
@@ -24,12 +25,11 @@ class DemoCfg(Config):
     """The demo's small default: dataset size, training length, model and seed."""
 
     out: Path = param(Path("runs/demo"), help="demo folder")
-    n: int = param(120, help="configurations to simulate")
-    epochs: int = param(4, help="training epochs")
-    model: str = param("schoeconv100-v3-fc160", help="registered model (`vistac models`)")
-    rotations: int = param(4, help="rotation copies per image (the study used 20)")
-    workers: int = param(0, help="generate processes (0: all cores)")
-    seed: int = param(0, help="seed of the dataset and of the run")
+    n: int = param(600, ge=30, le=1_000_000, help="configurations to simulate")
+    epochs: int = param(15, ge=1, le=10_000, help="training epochs")
+    model: str = param("tipnet", help="registered model (`vistac models`)")
+    workers: int = param(0, ge=0, help="generate processes (0: all cores)")
+    seed: int = param(0, ge=0, lt=2**32, help="seed of the dataset and of the run")
 
 
 def run_demo(cfg: DemoCfg) -> Path:
@@ -43,20 +43,20 @@ def run_demo(cfg: DemoCfg) -> Path:
     if not (data / "manifest.json").exists():
         resume = ["--resume"] if (data / ".partial").exists() else []
         generate = ["generate", "--out", str(data), "--n", str(cfg.n), "--noise", "0.05",
-                    "--seed", str(cfg.seed), "--workers", str(cfg.workers), *resume]
+                    "--split-by", "object", "--seed", str(cfg.seed), "--workers",
+                    str(cfg.workers), *resume]
         _check(vistac(generate), "generate")
     t_data = time.perf_counter() - t0
     train_args = ["train", "--data", str(data), "--out", str(run), "--model", cfg.model,
-                  "--variant", "edge-index", "--finger", "index", "--epochs", str(cfg.epochs),
-                  "--n-rotations", str(cfg.rotations), "--seed", str(cfg.seed)]
-    if (run / "config.json").exists():
+                  "--epochs", str(cfg.epochs), "--seed", str(cfg.seed)]
+    if (run / "checkpoints" / "last.pt").exists():
         train_args.append("--resume")
     t1 = time.perf_counter()
     _check(vistac(train_args), "train")
     t_train = time.perf_counter() - t1
     _check(vistac(["evaluate", "--run", str(run)]), "evaluate")
     baseline = ["evaluate", "--baseline", "geometric", "--data", str(data), "--out",
-                str(out / "baseline"), "--n-rotations", str(cfg.rotations)]
+                str(out / "baseline"), "--finger", "both", "--rotations", "none"]
     _check(vistac(baseline), "evaluate baseline")
     return write_report(out, data, run, t_data, t_train)
 
@@ -74,6 +74,7 @@ def write_report(out: Path, data: Path, run: Path, t_data: float, t_train: float
     figures = out / "figures"
     figures.mkdir(exist_ok=True)
     for src, name in [(run / "eval" / "test" / "cones_index.png", "model_cones_index.png"),
+                      (run / "eval" / "test" / "cones_thumb.png", "model_cones_thumb.png"),
                       (run / "eval" / "test" / "error_hist_index.png", "model_error_hist.png"),
                       (out / "baseline" / "cones_index.png", "baseline_cones_index.png")]:
         if src.exists():
@@ -93,7 +94,7 @@ def write_report(out: Path, data: Path, run: Path, t_data: float, t_train: float
         f"(chosen on validation), trained in {t_train:.1f} s; inference "
         f"{model['images_per_s']:.0f} images/s on {model['device']}.",
         "",
-        "## Test split, index finger (the study's columns)",
+        "## Test split: held-out objects, both fingers (the study's columns)",
         "",
         "```",
         model["table"],
@@ -101,7 +102,8 @@ def write_report(out: Path, data: Path, run: Path, t_data: float, t_train: float
         "```",
         "",
         "![example input](figures/example_input.png)",
-        "![model cones](figures/model_cones_index.png)",
+        "![model cones, index](figures/model_cones_index.png)",
+        "![model cones, thumb](figures/model_cones_thumb.png)",
         "![model error histogram](figures/model_error_hist.png)",
         "![baseline cones](figures/baseline_cones_index.png)",
         "",

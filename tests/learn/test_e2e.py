@@ -7,10 +7,10 @@ import pytest
 
 from vistac.cli import main
 from vistac.dataset import open_dataset
-from vistac_learn.data.pairs import RotationCfg
+from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.geometric import baseline_predictions
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
-from vistac_learn.train.config import TrainCfg
+from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.loop import train
 
 
@@ -26,9 +26,8 @@ def generated(tmp_path_factory):
 def test_generated_dataset_trains_and_evaluates(generated, tmp_path):
     t = open_dataset(generated)
     assert len(t.configs) == 30 and t.has_boxes("index") and t.has_boxes("thumb")
-    cfg = TrainCfg(data=str(generated), out=str(tmp_path / "run"), model="smallconv",
-                   variant="edge-index", finger="index", epochs=1, n_rotations=2,
-                   device="cpu", cache_dir=str(tmp_path / "cache"))
+    cfg = protocol_cfg("study", str(generated), str(tmp_path / "run"), model="smallconv",
+                       epochs=1, n_rotations=2, device="cpu", cache_dir=str(tmp_path / "cache"))
     run = train(cfg, progress=False)
     res = evaluate_run(run, split="test")
     s = res["metrics"]["index"]

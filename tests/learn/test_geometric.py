@@ -7,13 +7,8 @@ import pytest
 from learn_fixtures import make_dataset
 
 from vistac.dataset import open_dataset
-from vistac_learn.data.pairs import RotationCfg
-from vistac_learn.evaluate.geometric import (
-    GeometricCfg,
-    baseline_predictions,
-    finger_masks,
-    geometric_direction,
-)
+from vistac_learn.data.samples import RotationCfg
+from vistac_learn.evaluate.geometric import baseline_predictions, predict_image
 
 
 def _angle(p: np.ndarray) -> np.ndarray:
@@ -45,7 +40,7 @@ def test_recovers_the_normal_at_every_rotation(frictionless):
 def test_missing_finger_falls_back_straight_into_the_pad(frictionless):
     t = open_dataset(frictionless)
     img = np.full((64, 64, 3), 207, np.uint8)
-    masks = finger_masks(img, {f: t.finger_rgb(f) for f in ("index", "thumb")}, {}, GeometricCfg())
-    pred, ok = geometric_direction(img, "index", masks, t.table_rgb)
-    assert not ok and tuple(pred) == (0.0, -1.0)
+    pred, failures = predict_image(img, {f: t.finger_rgb(f) for f in ("index", "thumb")},
+                                   ("index",))
+    assert failures == 1 and tuple(pred) == (0.0, -1.0)
 

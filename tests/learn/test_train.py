@@ -12,8 +12,9 @@ from learn_fixtures import make_dataset
 
 from vistac.cli import main
 from vistac.errors import UserError
+from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
-from vistac_learn.train.config import TrainCfg
+from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.loop import train
 
 TIME_COLUMNS = ("train_s", "epoch_s")
@@ -26,9 +27,10 @@ def ds_dir(tmp_path_factory):
 
 
 def _cfg(ds_dir, out, **kw):
-    base = dict(data=str(ds_dir), out=str(out), model="smallconv", epochs=2, n_rotations=3,
-                batch_size=4, lr=1e-3, device="cpu", cache_dir=str(ds_dir.parent / "cache"))
-    return TrainCfg(**(base | kw))
+    """A study-protocol run of SmallConv (the default protocol is tested in test_default.py)."""
+    base = dict(model="smallconv", epochs=2, n_rotations=3, batch_size=4, lr=1e-3,
+                device="cpu", cache_dir=str(ds_dir.parent / "cache"))
+    return protocol_cfg("study", str(ds_dir), str(out), **(base | kw))
 
 
 def _rows(run):
@@ -100,8 +102,8 @@ def test_resume_without_intermediate_checkpoints_reruns_the_epoch(ds_dir, tmp_pa
 
 
 def test_evaluate_run_tta_and_baseline(ds_dir, tmp_path):
-    run = train(_cfg(ds_dir, tmp_path / "run", finger="both", epochs=1, select="in_cone_pct"),
-                progress=False)
+    run = train(_cfg(ds_dir, tmp_path / "run", variant="edge-crop", finger="both", epochs=1,
+                     select="in_cone_pct"), progress=False)
     res = evaluate_run(run, split="test")
     out = run / "eval" / "test"
     for name in ("metrics.json", "predictions.parquet", "cones_index.png", "cones_thumb.png",
@@ -110,17 +112,18 @@ def test_evaluate_run_tta_and_baseline(ds_dir, tmp_path):
     assert res["n_predictions"] == 2 * 3 and set(res["metrics"]) == {"index", "thumb"}
     assert "| % correct y | % in cone | median err overall" in res["table"]
     tta = evaluate_run(run, split="test", tta=True, make_plots=False)
-    assert tta["n_predictions"] == 2
-    bl = evaluate_baseline(ds_dir, tmp_path / "bl", split="test", finger="index")
+    assert tta["n_predictions"] == 2 and tta["tta"]
+    bl = evaluate_baseline(ds_dir, tmp_path / "bl", split="test", finger="index",
+                           rotations=RotationCfg("fixed", 20, 18.0))
     assert bl["n_predictions"] == 2 * 20 and bl["failures"] == 0
     assert np.isfinite(list(bl["metrics"]["index"].values())).all()
 
 
 def test_cli_train_and_evaluate(ds_dir, tmp_path, capsys):
     run = tmp_path / "cli"
-    argv = ["train", "--data", str(ds_dir), "--out", str(run), "--model", "smallconv",
-            "--epochs", "1", "--n-rotations", "2", "--device", "cpu", "--quiet",
-            "--cache-dir", str(tmp_path / "cache")]
+    argv = ["train", "--data", str(ds_dir), "--out", str(run), "--protocol", "study",
+            "--model", "smallconv", "--epochs", "1", "--n-rotations", "2", "--device", "cpu",
+            "--quiet", "--cache-dir", str(tmp_path / "cache")]
     assert main(argv) == 0
     assert main(["evaluate", "--run", str(run), "--no-plots"]) == 0
     assert "median err overall" in capsys.readouterr().out
@@ -153,7 +156,8 @@ def test_sigkilled_process_resumes_identically(ds_dir, tmp_path):
     import sys
     import time
 
-    argv = ["--data", str(ds_dir), "--model", "smallconv", "--epochs", "4", "--n-rotations",
+    argv = ["--data", str(ds_dir), "--protocol", "study", "--model", "smallconv", "--epochs",
+            "4", "--n-rotations",
             "6", "--batch-size", "2", "--lr", "1e-3", "--device", "cpu", "--quiet",
             "--checkpoint-every", "2", "--cache-dir", str(tmp_path / "cache")]
     ref = tmp_path / "ref"

@@ -1,4 +1,4 @@
-"""vistac_learn.data variants and cache: rotation, box rotation, crops, Canny, the cache."""
+"""vistac_learn.data.variants: rotation, box rotation, crops, automatic Canny."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ from learn_fixtures import make_dataset
 
 from vistac.dataset import open_dataset
 from vistac.errors import UserError
-from vistac_learn.data import cache as C
 from vistac_learn.data import variants as V
-from vistac_learn.data.pairs import RotationCfg
+from vistac_learn.data.samples import SampleSet
+from vistac_learn.data.views import make_view
 
 
 @pytest.fixture(scope="module")
@@ -111,30 +111,6 @@ def test_finger_stays_inside_rotated_box(ds_dir):
         assert vs.max() <= by + bh
 
 
-def test_variant_cache_computed_once(ds_dir, tmp_path, monkeypatch):
-    t = open_dataset(ds_dir)
-    rot = RotationCfg("fixed", n=3)
-    cfg = V.VariantCfg("edge-index", size=32)
-    a = C.variant_images(t, cfg, rot, tmp_path)
-    assert a.shape == (4, 3, 1, 32, 32)
-    files = sorted(tmp_path.glob("*.npy"))
-    assert len(files) == 1 and files[0].with_suffix(".json").exists()
-
-    def boom(*args, **kwargs):
-        raise AssertionError("recomputed")
-
-    monkeypatch.setattr(C, "render_variant", boom)
-    b = C.variant_images(t, cfg, rot, tmp_path)
-    np.testing.assert_array_equal(a, b)
-    # another size, rotation set or dataset is another key
-    keys = {C.cache_key(t, cfg, rot.angles(np.arange(4))),
-            C.cache_key(t, V.VariantCfg("edge-index", size=33), rot.angles(np.arange(4))),
-            C.cache_key(t, cfg, RotationCfg("fixed", n=4).angles(np.arange(4)))}
-    assert len(keys) == 3
-    with pytest.raises(AssertionError, match="recomputed"):
-        C.variant_images(t, V.VariantCfg("edge-index", size=33), rot, tmp_path)
-
-
 def test_box_variant_without_boxes_is_a_clear_error(ds_dir, tmp_path):
     import shutil
 
@@ -146,9 +122,9 @@ def test_box_variant_without_boxes_is_a_clear_error(ds_dir, tmp_path):
     c.drop(columns=[k for k in c.columns if k.startswith("bbox_")]).to_parquet(
         d / "configs.parquet")
     t = open_dataset(d)
-    base = C.variant_images(t, V.VariantCfg("color-base", 24), RotationCfg("none"), tmp_path)
-    assert base.shape == (4, 1, 3, 24, 24)
+    base = SampleSet(t, t.rows(None), make_view("color-base"), 24, ("index",), threads=1)
+    assert base.batch(np.arange(4))["image"].shape == (4, 3, 24, 24)
     with pytest.raises(UserError, match="needs columns bbox_index"):
-        C.variant_images(t, V.VariantCfg("edge-index", 24), RotationCfg("none"), tmp_path)
+        SampleSet(t, t.rows(None), make_view("edge-index"), 24, ("index",))
     with pytest.raises(UserError, match="unknown variant"):
         V.VariantCfg("edge-pinky")

@@ -1,4 +1,4 @@
-"""The study's image variants (thesis.md section 4), computed once per dataset and cached.
+"""The study's image variants (thesis.md section 4).
 
 A variant name is ``<mode>-<region>``: mode ``color`` (RGB, 3 channels) or ``edge`` (Canny edges
 of the base image, 1 channel); region ``base`` (the whole rotated image), ``crop`` (both finger
@@ -18,8 +18,7 @@ Pipeline of one image at one angle (all whole-array OpenCV / NumPy):
 4. Resize so that the long side equals the model's input size (area interpolation when shrinking,
    linear when enlarging) and pad to a square with the background, centred.
 
-`vistac_learn.data.cache.variant_images` computes a variant for every configuration and angle
-of a rotation set once and caches it.
+`vistac_learn.data.views.StudyView` renders a variant per sample, batch by batch.
 """
 
 from __future__ import annotations
@@ -37,7 +36,6 @@ from vistac.errors import UserError
 MODES = ("color", "edge")
 REGIONS = ("base", "crop", "index", "thumb")
 VARIANTS = tuple(f"{m}-{r}" for m in MODES for r in REGIONS)
-PIPELINE_VERSION = 1  # bump when the pipeline's output changes; invalidates caches
 
 
 @dataclass(frozen=True)

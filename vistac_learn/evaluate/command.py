@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Literal
 
 from vistac.config import Config, ConfigError, HelpFormatter, add_options, from_options, param
-from vistac_learn.data.pairs import FINGER_CHOICES, ROTATION_MODES, RotationCfg
+from vistac_learn.data.samples import FINGER_CHOICES, ROTATION_MODES, RotationCfg
 from vistac_learn.train.config import DEVICES
 
 
@@ -22,7 +22,8 @@ class EvaluateCfg(Config):
     baseline: Literal["geometric"] | None = param(None, help="score a baseline instead of a run")
     data: str | None = param(None, help="dataset (default: the run's; required with --baseline)")
     split: str = param("test", help="split to score")
-    tta: bool = param(False, help="average each configuration's rotations")
+    tta: bool = param(False, help="test-time augmentation: average each configuration's "
+                      "rotations and its mirrored view")
     checkpoint: Literal["best", "last"] = param("best", help="the run's checkpoint")
     out: str | None = param(None, help="output folder (default <run>/eval/<split>[-tta], with "
                             "--baseline <data>/eval/geometric-<split>)")
@@ -32,6 +33,8 @@ class EvaluateCfg(Config):
     n_rotations: int = param(RotationCfg.n, help="baseline only: angles per configuration")
     no_plots: bool = param(False, help="skip the PNG figures")
     device: str | None = param(None, choices=DEVICES, help="override the run's device")
+    cross_dataset: bool = param(False, help="score the run on a --data other than the one it "
+                                "was trained on")
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -79,7 +82,8 @@ def _handler(args: argparse.Namespace) -> int:
                                 not cfg.no_plots, progress=True)
     else:
         res = evaluate_run(cfg.run, cfg.data, cfg.split, cfg.tta, cfg.checkpoint, cfg.out,
-                           not cfg.no_plots, cfg.device, progress=True)
+                           not cfg.no_plots, cfg.device, progress=True,
+                           cross_dataset=cfg.cross_dataset)
     print(f"{res['n_predictions']} predictions of {res['n_configs']} configurations; "
           f"results in {cfg.out_dir}")
     return 0

@@ -27,11 +27,19 @@ import torch
 
 from vistac.dataset import open_dataset
 from vistac.errors import UserError
-from vistac_learn.data.pairs import RotationCfg, fingers_of
+from vistac_learn.data.fingertips import fingertip_table
+from vistac_learn.data.samples import RotationCfg, fingers_of
 from vistac_learn.evaluate import plots
 from vistac_learn.evaluate.geometric import GeometricCfg, baseline_predictions
 from vistac_learn.metrics.scoring import average_over_rotations, format_table, predict, score
-from vistac_learn.train.config import TrainCfg, build_model, build_pairs, resolve_device
+from vistac_learn.train.config import (
+    TrainCfg,
+    build_model,
+    build_samples,
+    build_view,
+    input_size,
+    resolve_device,
+)
 
 
 def load_run(run: str | Path) -> tuple[TrainCfg, dict]:
@@ -100,6 +108,26 @@ def _write_outputs(
     return result
 
 
+def run_dataset(meta: dict, data: str | Path | None, cross_dataset: bool):
+    """The dataset to score a run on, checked against the run's.
+
+    Without `data`, the run's own dataset (its absolute path in ``config.json``), which must
+    still have the fingerprint the run recorded. Another dataset is scored only with
+    `cross_dataset` (e.g. a sim-trained model on real recordings).
+    """
+    saved = meta["dataset"]
+    tables = open_dataset(data if data is not None else saved["path"])
+    if tables.fingerprint() != saved["fingerprint"]:
+        if data is None:
+            raise UserError(f"{saved['path']}: the run's dataset has changed since training "
+                            "(fingerprint differs); score it explicitly with --data and "
+                            "--cross-dataset")
+        if not cross_dataset:
+            raise UserError(f"--data {data}: not the run's dataset ({saved['path']}); pass "
+                            "--cross-dataset to score the run on another dataset")
+    return tables
+
+
 def evaluate_run(
     run: str | Path,
     data: str | Path | None = None,
@@ -110,6 +138,7 @@ def evaluate_run(
     make_plots: bool = True,
     device: str | None = None,
     progress: bool = False,
+    cross_dataset: bool = False,
 ) -> dict:
     """Score a run's model on a split.
 
@@ -117,35 +146,49 @@ def evaluate_run(
         run: Run folder.
         data: Dataset to score on (default: the run's training dataset).
         split: Split to score.
-        tta: Average each configuration's rotations before scoring.
+        tta: Test-time augmentation: average each configuration's rotations (study views) and
+            its mirrored view (r_y of the mirror negated).
         checkpoint: ``best`` (validation-selected) or ``last``.
         out: Output folder (default ``<run>/eval/<split>[-tta]``).
         make_plots: Write the PNG figures.
         device: Override the run's device.
         progress: Show progress bars.
+        cross_dataset: Allow a dataset other than the run's (see `run_dataset`).
 
     Returns:
         The content of ``metrics.json``.
     """
     cfg, meta = load_run(run)
-    if data is not None:
-        cfg = dataclasses.replace(cfg, data=str(data))
     dev = resolve_device(device or cfg.device)
-    tables = open_dataset(cfg.data)
+    tables = run_dataset(meta, data, cross_dataset)
+    cfg = dataclasses.replace(cfg, data=str(tables.root))
     model, epoch = load_model(run, cfg, checkpoint, dev)
-    input_size = int(getattr(model, "input_size", cfg.size or 227))
-    ds = build_pairs(cfg, tables, split, input_size, progress, target="mean")
+    size = input_size(cfg, model)
+    tips = fingertip_table(tables, cache_dir=cfg.cache_dir, progress=progress) \
+        if build_view(cfg).needs_tips else None
+    ds = build_samples(cfg, tables, split, size, tips)
     t0 = time.perf_counter()
-    pred = predict(model, ds, dev, cfg.eval_batch_size)
+    try:
+        pred = predict(model, ds, dev, cfg.eval_batch_size)
+        if tta:
+            ds.mirror_all = True
+            mirrored = predict(model, ds, dev, cfg.eval_batch_size)
+            mirrored[:, 0::2] *= -1
+            pred = 0.5 * (pred + mirrored)
+    finally:
+        ds.close()
     elapsed = time.perf_counter() - t0
     item_row, item_rot = ds.item_row, ds.item_rot
     if tta:
         pred, item_row = average_over_rotations(pred, item_row)
         item_rot = np.full(len(item_row), -1)
-    info = {"kind": "model", "run": str(run), "model": cfg.model, "variant": cfg.variant,
-            "data": str(cfg.data), "split": split, "tta": tta, "checkpoint": checkpoint,
-            "epoch": epoch, "device": str(dev), "images_per_s": len(ds) / max(elapsed, 1e-9),
-            "n_rotations": ds.images.shape[1]}
+    lost = {f: (tips.failures(ds.rows, f) if tips is not None else 0) for f in ds.fingers}
+    info = {"kind": "model", "run": str(Path(run).resolve()), "model": cfg.model,
+            "variant": cfg.variant, "data": str(tables.root.resolve()),
+            "fingerprint": tables.fingerprint(), "split": split, "tta": tta,
+            "checkpoint": checkpoint, "epoch": epoch, "device": str(dev),
+            "images_per_s": len(ds) * (2 if tta else 1) / max(elapsed, 1e-9),
+            "n_rotations": ds.rotations.count, "fingers_not_found": lost}
     out = Path(out) if out is not None else Path(run) / "eval" / (split + ("-tta" if tta else ""))
     label = f"{cfg.model}, {cfg.variant}" + (", TTA" if tta else "")
     return _write_outputs(out, label, pred, tables, ds.rows, item_row, item_rot,

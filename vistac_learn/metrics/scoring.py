@@ -33,16 +33,21 @@ ANGLE_COLUMNS = (
 @torch.no_grad()
 def predict(model: torch.nn.Module, ds, device: torch.device | str, batch_size: int = 64
             ) -> np.ndarray:
-    """Model outputs for every item of a `PairDataset`, in item order, as float64 (M, out)."""
+    """Model outputs for every sample of a `SampleSet`, in sample order, as float64 (M, 2F).
+
+    A finger that was not located in its image gets (0, -1), straight against the approach.
+    """
     model.eval()
     out = []
-    for start in range(0, len(ds), batch_size):
-        items = np.arange(start, min(start + batch_size, len(ds)))
-        x = ds.batch(items)["image"].to(device)
-        out.append(model(x).float().cpu().numpy())
+    for _, batch in ds.batches(np.arange(len(ds)), batch_size):
+        p = model(batch["image"].to(device)).float().cpu().numpy().astype(np.float64)
+        lost = ~batch["found"].numpy()
+        for k in range(lost.shape[1]):
+            p[lost[:, k], 2 * k:2 * k + 2] = (0.0, -1.0)
+        out.append(p)
     if not out:
         return np.zeros((0, 2 * len(ds.fingers)))
-    return np.concatenate(out).astype(np.float64)
+    return np.concatenate(out)
 
 
 def score(
@@ -78,7 +83,7 @@ def score(
 
 
 def score_predictions(pred: np.ndarray, ds, full: bool = False) -> dict[str, dict]:
-    """`score` for the items of a `PairDataset`."""
+    """`score` for the samples of a `SampleSet`."""
     return score(pred, ds.tables, ds.rows, ds.item_row, ds.fingers, full)
 
 

@@ -71,10 +71,33 @@ class ConvFCNet(nn.Module):
             nn.ReLU(inplace=True),
             nn.Linear(fc_width, out_features),
         )
+        init_signal_preserving(self)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Map (B, C, H, W) images to (B, out_features)."""
         return self.head(self.features(x))
+
+
+def init_signal_preserving(model: nn.Module) -> None:
+    """He (Kaiming-normal, fan-in) weights and zero biases for every layer before a ReLU.
+
+    PyTorch's default initialisation of Conv2d and Linear (uniform, gain 1/sqrt(3) of He's)
+    divides the variance of the signal by about six at every ReLU layer; through the study's
+    five to seven ReLU layers (and sparse, mostly-zero edge images) an untrained SchoeConv100-V3
+    answers every image alike: its outputs vary by 2e-4 across images against a label spread of
+    0.25, so training starts on a plateau and the study's settings (Adam, lr 1e-4, batch 5)
+    take some 60 epochs on 64 images to leave it. He's initialisation keeps the variance of
+    the signal through each ReLU layer. The last layer starts small (std 1e-3), so the first
+    predictions are near zero rather than large.
+    """
+    layers = [m for m in model.modules() if isinstance(m, nn.Conv2d | nn.Linear)]
+    for m in layers[:-1]:
+        nn.init.kaiming_normal_(m.weight, mode="fan_in", nonlinearity="relu")
+        if m.bias is not None:
+            nn.init.zeros_(m.bias)
+    nn.init.normal_(layers[-1].weight, std=1e-3)
+    if layers[-1].bias is not None:
+        nn.init.zeros_(layers[-1].bias)
 
 
 def _build_layers(layers: Sequence[Conv | Pool], in_channels: int) -> list[nn.Module]:

@@ -1,35 +1,50 @@
-"""`vistac train`: its options (declared by `TrainCfg`) and handler."""
+"""`vistac train`: its options (declared by `TrainCfg`), the protocol switch and the handler."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
 
-from vistac.config import HelpFormatter, add_options, from_options
-from vistac_learn.train.config import TrainCfg
+from vistac.config import HelpFormatter, add_options, apply, flag_labels, option_values
+from vistac_learn.train.config import PROTOCOLS, STUDY, TrainCfg, protocol_cfg
 
-OPTIONS = tuple(f.name for f in dataclasses.fields(TrainCfg) if f.name != "eval_batch_size")
+OPTIONS = tuple(f.name for f in dataclasses.fields(TrainCfg)
+                if f.name not in ("data", "out", "eval_batch_size"))
 
 
 def add_command(sub: argparse._SubParsersAction) -> None:
     """Register `vistac train`."""
+    study = ", ".join(f"{k}={v}" for k, v in STUDY.items())
     p = sub.add_parser(
         "train",
-        help="train a model on an image variant of a dataset",
-        description="Train a registered model (see `vistac models`) on one image variant of a "
-        "dataset; select the best epoch on the validation split; resumable.",
+        help="train a model on a dataset",
+        description="Train a registered model (see `vistac models`) on a dataset; select the "
+        "best epoch on the validation split; resumable. Defaults are those of --protocol "
+        "default (the tip view and tipnet, both fingers); --protocol study switches them to "
+        f"the reference study's ({study}); any option overrides either.",
         formatter_class=HelpFormatter,
     )
+    p.add_argument("--data", required=True, help="dataset directory")
+    p.add_argument("--out", required=True, help="run folder to create (or continue)")
+    p.add_argument("--protocol", default="default", choices=tuple(PROTOCOLS),
+                   help="set of defaults: the project's recipe or the reference study's")
     add_options(p, TrainCfg, OPTIONS)
+    p.set_defaults(**{o: None for o in OPTIONS})  # unset options keep the protocol's value
     p.add_argument("--resume", action="store_true", help="continue the run in --out")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=_handler)
 
 
+def options_cfg(args: argparse.Namespace) -> TrainCfg:
+    """The run's config: the protocol's defaults, then the options given."""
+    given = {k: v for k, v in option_values(args, TrainCfg, OPTIONS).items() if v is not None}
+    base = protocol_cfg(args.protocol, args.data, args.out)
+    return apply(base, given, labels=flag_labels(TrainCfg, OPTIONS))
+
+
 def _handler(args: argparse.Namespace) -> int:
     from vistac_learn.train.loop import train
 
-    out = train(from_options(TrainCfg, args, OPTIONS), resume=args.resume,
-                progress=not args.quiet)
+    out = train(options_cfg(args), resume=args.resume, progress=not args.quiet)
     print(f"run written to {out}")
     return 0

@@ -1,73 +1,142 @@
-"""A training run's settings (`TrainCfg`, written to ``config.json``) and what they build."""
+"""A training run's settings (`TrainCfg`, written to ``config.json``) and what they build.
+
+Two protocols, each a complete set of defaults (every option overrides either):
+
+- ``default``: the project's recipe. The ``tip`` view (each finger's fingertip crop, found in
+  the image and turned so that the finger points up) and `tipnet`, both fingers through one
+  network; AdamW with a one-cycle learning-rate schedule, batches of 32, 30 epochs; mirror and
+  crop-jitter augmentation drawn per batch; the best epoch by the validation median angle to
+  the cone mean.
+- ``study``: the reference study's protocol (thesis.md section 8): SchoeConv100-V3(FC160) on
+  ``edge-index`` images at 20 fixed rotations of 18 degrees, index finger, MSE, Adam with a
+  constant lr 1e-4, weight decay 1e-5, batches of 5, 20 epochs; selection by the validation
+  median overall error (the study selected on its test set; we never do).
+"""
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import torch
 
 from vistac.config import Config, param
+from vistac.dataset import DatasetTables
 from vistac.errors import UserError
-from vistac_learn.data.cache import variant_images
-from vistac_learn.data.pairs import (
+from vistac_learn.data.fingertips import FingertipTable
+from vistac_learn.data.samples import (
     FINGER_CHOICES,
     ROTATION_MODES,
     TARGETS,
-    PairDataset,
+    AugmentCfg,
     RotationCfg,
+    SampleSet,
     fingers_of,
 )
-from vistac_learn.data.variants import VARIANTS, VariantCfg
+from vistac_learn.data.views import TIP_VIEW, VIEWS, View, make_view
 from vistac_learn.models import create_model
+from vistac_learn.models.tipnet import PerFinger
 
 DEVICES = ("auto", "cpu", "cuda")
+OPTIMIZERS = ("adam", "adamw")
+SCHEDULES = ("constant", "onecycle")
+FREEZE = ("none", "features")
 
 
-@dataclass
+@dataclass(frozen=True)
 class TrainCfg(Config):
-    """Everything a training run depends on (written to ``config.json``).
-
-    The study's defaults (thesis.md section 8): MSE loss, Adam, lr 1e-4, weight decay 1e-5,
-    batch 5, 20 epochs. Every field but `eval_batch_size` is an option of `vistac train`.
-    """
+    """Everything a training run depends on (written to ``config.json``); defaults: the
+    ``default`` protocol (see `PROTOCOLS`)."""
 
     data: str = param(help="dataset directory")
     out: str = param(help="run folder to create (or continue)")
-    model: str = param("schoeconv100-v3-fc160", help="registered model name (`vistac models`)")
-    variant: str = param("edge-index", choices=VARIANTS,
-                         help="image variant (`vistac_learn.data.variants`)")
-    finger: str = param("index", choices=FINGER_CHOICES,
+    model: str = param("tipnet", help="registered model name (`vistac models`)")
+    variant: str = param(TIP_VIEW, choices=VIEWS, help="what the model sees: tip (fingertip "
+                         "crops) or one of the study's image variants")
+    finger: str = param("both", choices=FINGER_CHOICES,
                         help="finger(s) whose labels are the target (2 outputs per finger)")
-    epochs: int = param(20, ge=1, help="epochs to train")
-    batch_size: int = param(5, ge=1, help="pairs per optimiser step")
-    lr: float = param(1e-4, gt=0, help="Adam learning rate")
-    weight_decay: float = param(1e-5, ge=0, help="Adam weight decay")
-    seed: int = param(0, help="seed of initial weights, pair order and press draws")
+    epochs: int = param(30, ge=1, le=100_000, help="epochs to train")
+    batch_size: int = param(32, ge=1, le=65_536, help="samples per optimiser step")
+    optimizer: str = param("adamw", choices=OPTIMIZERS, help="optimiser")
+    lr: float = param(3e-3, gt=0, le=1e6, help="learning rate (the peak of a one-cycle schedule)")
+    weight_decay: float = param(1e-4, ge=0, le=1, help="weight decay")
+    schedule: str = param("onecycle", choices=SCHEDULES, help="learning-rate schedule")
+    seed: int = param(0, ge=0, lt=2**32, help="seed of weights, sample order, draws, augmentation")
     target: str = param("mean", choices=TARGETS,
-                        help="training target from the repeats: mean unit label (default), one "
-                        "random press per pair and epoch, or every press")
-    rotations: str = param("fixed", choices=ROTATION_MODES, help="rotation set of the images")
-    n_rotations: int = param(20, ge=1, help="angles per configuration (training and "
-                             "validation)")
-    rotation_step: float = param(18.0, help="degrees between fixed angles")
-    margin: float = param(0.05, help="finger-box margin as a fraction of the image side")
-    size: int | None = param(None, help="input side (default: the model's)")
-    select: str = param("loss", help="validation quantity choosing the best epoch: loss (MSE "
-                        "against the mean unit labels) or a summary metric name of "
-                        "`cone_metrics` (e.g. error_median_pct, lower is better; in_cone_pct, "
-                        "higher is better), averaged over the fingers with both")
-    train_split: str = param("train", help="split to train on")
-    val_split: str = param("val", help="split to select on")
+                        help="training target from the repeats: mean unit label, one random "
+                        "press per sample and epoch, or every press")
+    rotations: str = param("none", choices=ROTATION_MODES,
+                           help="top-view rotations per configuration (study views only)")
+    n_rotations: int = param(20, ge=1, le=360, help="samples per configuration with fixed or "
+                             "random rotations (training and validation)")
+    rotation_step: float = param(18.0, gt=0, le=360, help="degrees between fixed angles")
+    mirror: bool = param(True, help="mirror half of the training samples (r_y -> -r_y)")
+    jitter: float = param(1.0, ge=0, le=10, help="tip view: crop jitter as a multiple of the "
+                          "default (0.1 radius, 2 deg, 5 %%); 0 switches it off")
+    margin: float = param(0.05, ge=0, le=1, help="study views: finger-box margin, fraction of "
+                          "the image side")
+    size: int | None = param(None, ge=16, le=1024, help="input side (default: the model's)")
+    select: str = param("angle_to_mean_median_deg", help="validation quantity choosing the "
+                        "best epoch: loss or a summary metric of `cone_metrics` (e.g. "
+                        "angle_to_mean_median_deg or error_median_pct, lower is better; "
+                        "in_cone_pct, higher is better), averaged over the fingers")
+    train_split: str = param("train", choices=("train", "val", "test"), help="split to train on")
+    val_split: str = param("val", choices=("train", "val", "test"), help="split to select on")
+    init: str | None = param(None, help="run folder whose best weights start this run "
+                             "(fine-tuning); a head of another shape is re-initialised")
+    freeze: str = param("none", choices=FREEZE, help="with --init: keep the feature layers "
+                        "fixed (features) or train everything (none)")
     device: str = param("auto", choices=DEVICES,
                         help="auto (CUDA when present, else CPU), cpu or cuda")
-    cache_dir: str | None = param(None, help="variant cache (default <data>/cache/variants)")
-    checkpoint_every: int = param(0, help="also checkpoint every N batches (0: at epoch ends "
-                                  "only)")
-    eval_batch_size: int = param(64, ge=1, help="pairs per forward pass when scoring")
+    cache_dir: str | None = param(None, help="folder of the fingertip table (default "
+                                  "<data>/cache)")
+    checkpoint_every: int = param(0, ge=0, help="also checkpoint every N batches (0: at epoch "
+                                  "ends only)")
+    eval_batch_size: int = param(256, ge=1, help="samples per forward pass when scoring")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.variant == TIP_VIEW and self.rotations != "none":
+            raise UserError("--rotations: the tip view turns every crop to its finger, so "
+                            "rotations change nothing; use --rotations none")
+        if self.freeze != "none" and self.init is None:
+            raise UserError("--freeze: needs --init RUN (weights to keep fixed)")
+        if self.train_split == self.val_split:
+            raise UserError(f"--val-split: must differ from --train-split "
+                            f"({self.train_split})")
+        if self.variant != TIP_VIEW and self.variant.endswith(("-index", "-thumb")):
+            region = self.variant.rsplit("-", 1)[1]
+            if self.finger not in (region,):
+                raise UserError(f"--finger {self.finger}: variant {self.variant} shows only "
+                                f"the {region} finger; use --finger {region}")
 
     def rotation_cfg(self) -> RotationCfg:
-        """The rotation set of training and validation."""
-        return RotationCfg(self.rotations, self.n_rotations, self.rotation_step, self.seed)
+        """Rotations of training and validation samples."""
+        return RotationCfg(self.rotations, self.n_rotations, self.rotation_step)
+
+    def augment_cfg(self) -> AugmentCfg | None:
+        """Training augmentation (None when nothing is switched on)."""
+        j = self.jitter if self.variant == TIP_VIEW else 0.0
+        if not self.mirror and j == 0:
+            return None
+        d = AugmentCfg()
+        return AugmentCfg(self.mirror, d.shift * j, d.turn * j, d.scale * j)
+
+
+STUDY = {"model": "schoeconv100-v3-fc160", "variant": "edge-index", "finger": "index",
+         "epochs": 20, "batch_size": 5, "optimizer": "adam", "lr": 1e-4, "weight_decay": 1e-5,
+         "schedule": "constant", "rotations": "fixed", "n_rotations": 20, "rotation_step": 18.0,
+         "mirror": False, "jitter": 0.0, "select": "error_median_pct"}
+PROTOCOLS = {"default": {}, "study": STUDY}
+
+
+def protocol_cfg(protocol: str, data: str, out: str, **changes) -> TrainCfg:
+    """A `TrainCfg` of a protocol's defaults, with `changes` on top."""
+    if protocol not in PROTOCOLS:
+        raise UserError(f"--protocol: must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
+    base = {f.name: f.default for f in dataclasses.fields(TrainCfg)
+            if f.default is not dataclasses.MISSING}
+    return TrainCfg(**(base | PROTOCOLS[protocol] | {"data": data, "out": out} | changes))
 
 
 def resolve_device(name: str) -> torch.device:
@@ -79,22 +148,33 @@ def resolve_device(name: str) -> torch.device:
     return torch.device(name)
 
 
+def build_view(cfg: TrainCfg) -> View:
+    """The run's view."""
+    return make_view(cfg.variant, cfg.margin)
+
+
 def build_model(cfg: TrainCfg) -> torch.nn.Module:
-    """The run's model, freshly initialised from the seed."""
-    channels = VariantCfg(cfg.variant).channels
-    n_out = 2 * len(fingers_of(cfg.finger))
+    """The run's model, freshly initialised from the seed (per finger for per-finger views)."""
+    view = build_view(cfg)
+    n_fingers = len(fingers_of(cfg.finger))
     torch.manual_seed(cfg.seed)
     try:
-        return create_model(cfg.model, in_channels=channels, out_features=n_out)
+        if view.per_finger:
+            return PerFinger(create_model(cfg.model, view.channels, 2), n_fingers)
+        return create_model(cfg.model, in_channels=view.channels, out_features=2 * n_fingers)
     except (KeyError, ValueError) as exc:
         raise UserError(f"--model {cfg.model!r}: {exc}") from exc
 
 
-def build_pairs(cfg: TrainCfg, tables, split: str, input_size: int, progress: bool = False,
-                target: str | None = None, rotations: RotationCfg | None = None) -> PairDataset:
-    """The pair dataset of one split in the run's variant (cached images)."""
-    vcfg = VariantCfg(cfg.variant, cfg.size or input_size, cfg.margin)
-    images = variant_images(tables, vcfg, rotations or cfg.rotation_cfg(), cfg.cache_dir,
-                            progress=progress)
-    return PairDataset(tables, tables.rows(split), images, fingers_of(cfg.finger),
-                       target or cfg.target, cfg.seed)
+def input_size(cfg: TrainCfg, model: torch.nn.Module) -> int:
+    """Side of the rendered input: --size, else the model's own."""
+    return int(cfg.size or getattr(model, "input_size", 227))
+
+
+def build_samples(cfg: TrainCfg, tables: DatasetTables, split: str, size: int,
+                  tips: FingertipTable | None, train: bool = False) -> SampleSet:
+    """The samples of one split: training ones with the run's augmentation, others without."""
+    view = build_view(cfg)
+    return SampleSet(tables, tables.rows(split), view, size, fingers_of(cfg.finger),
+                     cfg.target if train else "mean", cfg.seed, cfg.rotation_cfg(),
+                     cfg.augment_cfg() if train else None, tips)

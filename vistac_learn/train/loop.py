@@ -1,24 +1,24 @@
-"""The training loop: train a registered model on one image variant of a dataset.
+"""The training loop: one function, `train(cfg)`, shared by `vistac train`, tuning and experiments.
 
-The study's defaults (thesis.md section 8) are those of `TrainCfg`. After each epoch the model is
-scored on the validation split (never on the test split) and the best epoch by the selection
-metric is kept as `best.pt`.
+After each epoch the model is scored on the validation split (never on the test split) and the
+best epoch by the selection metric is kept as `best.pt`.
 
 Run folder (``--out``):
 
-- ``config.json``: the full `TrainCfg`, the model's size, the dataset fingerprint, versions.
+- ``config.json``: the full `TrainCfg`, the model's size, the dataset's absolute path and
+  fingerprint, where `--init` weights came from, versions.
 - ``metrics.csv``: append-only, one row per finished epoch (train loss, validation loss and
   the validation metrics of each finger, seconds).
-- ``checkpoints/last.pt``: model, optimizer, torch RNG state, position (epoch, batch), history;
-  written atomically at the end of every epoch and every ``checkpoint_every`` batches.
+- ``checkpoints/last.pt``: model, optimizer, schedule, torch RNG state, position (epoch, batch),
+  history; written atomically at the end of every epoch and every ``checkpoint_every`` batches.
 - ``checkpoints/best.pt``: the model weights of the best validation epoch.
 
 Repeatability: weights are initialised after ``torch.manual_seed(seed)``; the order of the
-training pairs in epoch e is a permutation drawn from ``numpy.random.default_rng([seed, e])``,
-independent of what ran before, and the torch RNG state travels in the checkpoint. A run killed
-at any point and continued with ``--resume`` therefore replays exactly the batches the
-uninterrupted run would have seen; on CPU its metrics are bit-identical (tests assert equality
-at atol 1e-7 on every metrics column except time).
+training samples in epoch e is a permutation drawn from ``numpy.random.default_rng([seed, e])``
+and every sample's augmentation from (seed, e, sample), independent of what ran before; the torch
+RNG state travels in the checkpoint. A run killed at any point and continued with ``--resume``
+therefore replays exactly the batches the uninterrupted run would have seen; on CPU its metrics
+are bit-identical. A run killed before its first checkpoint is simply started again.
 """
 
 from __future__ import annotations
@@ -26,7 +26,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import os
 import platform
 import time
 from collections.abc import Callable
@@ -38,20 +37,27 @@ import torch
 from tqdm import tqdm
 
 from vistac.dataset import open_dataset
+from vistac.dataset.files import atomic_write_json
 from vistac.errors import UserError
-from vistac_learn.data.pairs import PairDataset, fingers_of
-from vistac_learn.data.variants import VariantCfg
+from vistac_learn.data.fingertips import fingertip_table
+from vistac_learn.data.samples import fingers_of
 from vistac_learn.metrics.scoring import predict, score_predictions
-from vistac_learn.models import model_info
-from vistac_learn.train.config import TrainCfg, build_model, build_pairs, resolve_device
+from vistac_learn.train.checkpoints import (
+    atomic_save,
+    init_from_run,
+    remove_stale_temporaries,
+    trainable_parameters,
+)
+from vistac_learn.train.config import (
+    TrainCfg,
+    build_model,
+    build_samples,
+    build_view,
+    input_size,
+    resolve_device,
+)
 
 HIGHER_IS_BETTER = frozenset({"correct_y_pct", "in_cone_pct", "n_in_cone"})
-
-
-def _atomic_save(obj, path: Path) -> None:
-    tmp = path.with_suffix(f".tmp{os.getpid()}")
-    torch.save(obj, tmp)
-    os.replace(tmp, path)
 
 
 def _selection_value(row: dict, select: str, fingers: tuple[str, ...]) -> tuple[float, bool]:
@@ -62,8 +68,7 @@ def _selection_value(row: dict, select: str, fingers: tuple[str, ...]) -> tuple[
     if not all(k in row for k in keys):
         names = sorted({k.split("_", 2)[2] for k in row if k.startswith(f"val_{fingers[0]}_")})
         raise UserError(f"--select {select!r}: not a metric; choose loss or one of {names}")
-    higher = select in HIGHER_IS_BETTER
-    return float(np.mean([row[k] for k in keys])), higher
+    return float(np.mean([row[k] for k in keys])), select in HIGHER_IS_BETTER
 
 
 def _append_rows(path: Path, rows: list[dict]) -> None:
@@ -83,19 +88,47 @@ def _logged_epochs(path: Path) -> set[int]:
         return {int(r["epoch"]) for r in csv.DictReader(fh)}
 
 
-def evaluate_loss(model, ds: PairDataset, device, batch_size: int) -> tuple[float, np.ndarray]:
-    """(mean MSE against the dataset's targets, predictions (M, 2F)) over every pair."""
+def masked_mse(pred: torch.Tensor, target: torch.Tensor, found: torch.Tensor) -> torch.Tensor:
+    """MSE over the fingers that were located (every finger for views that locate none)."""
+    w = found.to(pred.dtype).repeat_interleave(2, dim=1)
+    return ((pred - target) ** 2 * w).sum() / w.sum().clamp_min(1.0)
+
+
+def evaluate_loss(model, ds, device, batch_size: int) -> tuple[float, np.ndarray]:
+    """(MSE against the mean unit labels, predictions (M, 2F)) over every sample."""
     pred = predict(model, ds, device, batch_size)
-    target = ds.targets(np.arange(len(ds)))
-    return float(np.mean((pred - target) ** 2)), pred
+    found = np.repeat(ds.found(np.arange(len(ds))), 2, axis=1)
+    err = (pred - ds.targets(np.arange(len(ds)))) ** 2
+    return float((err * found).sum() / max(found.sum(), 1)), pred
 
 
-def train(
-    cfg: TrainCfg,
-    resume: bool = False,
-    progress: bool = True,
-    on_batch: Callable[[int, int], None] | None = None,
-) -> Path:
+def _check_resume(cfg: TrainCfg, out: Path, fingerprint: str) -> None:
+    saved = json.loads((out / "config.json").read_text())
+    mine = asdict(cfg)
+    diff = [k for k in mine if k not in ("epochs", "out", "data", "cache_dir")
+            and saved["train"].get(k) != mine[k]]
+    if diff:
+        raise UserError(f"{out / 'config.json'}: --resume with different settings "
+                        f"({', '.join(diff)})")
+    if saved["dataset"]["fingerprint"] != fingerprint:
+        raise UserError(f"--data {cfg.data}: not the dataset this run started on (its "
+                        f"fingerprint differs from {saved['dataset']['path']}'s)")
+
+
+def _optimizer(cfg: TrainCfg, model: torch.nn.Module, steps: int):
+    params = trainable_parameters(model)
+    kind = torch.optim.AdamW if cfg.optimizer == "adamw" else torch.optim.Adam
+    opt = kind(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
+    if cfg.schedule == "onecycle":
+        sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=cfg.lr, total_steps=steps,
+                                                    pct_start=0.25)
+    else:
+        sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda _: 1.0)
+    return opt, sched
+
+
+def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
+          on_batch: Callable[[int, int], None] | None = None) -> Path:
     """Train (or continue) a run; return the run folder.
 
     Args:
@@ -110,23 +143,18 @@ def train(
 
     Raises:
         UserError: Bad settings or data, an existing run folder without ``resume``, a resume
-            without a checkpoint or with different settings.
+            with other settings or another dataset, a training loss that is not finite.
     """
     out = Path(cfg.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out}: exists and is not a folder")
     ckpt_dir = out / "checkpoints"
     last_path, best_path = ckpt_dir / "last.pt", ckpt_dir / "best.pt"
     metrics_path = out / "metrics.csv"
-    if resume:
-        if not last_path.exists():
-            raise UserError(f"{last_path}: no checkpoint to resume from")
-        saved = json.loads((out / "config.json").read_text())["train"]
-        mine = asdict(cfg)
-        diff = [k for k in mine if k not in ("epochs", "out") and saved.get(k) != mine[k]]
-        if diff:
-            raise UserError(
-                f"{out / 'config.json'}: --resume with different settings ({', '.join(diff)})"
-            )
-    elif (out / "config.json").exists():
+    started = last_path.exists()
+    if resume and not started and not (out / "config.json").exists():
+        raise UserError(f"{out}: no run to resume (no config.json); drop --resume to start one")
+    if not resume and started:
         raise UserError(f"{out}: already holds a run; pass --resume or choose another --out")
 
     device = resolve_device(cfg.device)
@@ -134,22 +162,31 @@ def train(
         torch.backends.cudnn.deterministic = True
         torch.backends.cudnn.benchmark = False
     tables = open_dataset(cfg.data)
+    fingerprint = tables.fingerprint()
+    if started:
+        _check_resume(cfg, out, fingerprint)
     fingers = fingers_of(cfg.finger)
     model = build_model(cfg)
-    input_size = int(getattr(model, "input_size", cfg.size or 227))
-    train_ds = build_pairs(cfg, tables, cfg.train_split, input_size, progress)
-    val_ds = build_pairs(cfg, tables, cfg.val_split, input_size, progress, target="mean")
+    init_note = init_from_run(model, cfg) if cfg.init and not started else None
+    size = input_size(cfg, model)
+    view = build_view(cfg)
+    tips = fingertip_table(tables, cache_dir=cfg.cache_dir, progress=progress) \
+        if view.needs_tips else None
+    train_ds = build_samples(cfg, tables, cfg.train_split, size, tips, train=True)
+    val_ds = build_samples(cfg, tables, cfg.val_split, size, tips)
     model.to(device)
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     n_batches = math.ceil(len(train_ds) / cfg.batch_size)
+    opt, sched = _optimizer(cfg, model, n_batches * cfg.epochs)
 
     start_epoch, start_batch, history = 0, 0, []
     run_sum, run_n = 0.0, 0
     best_value, best_epoch = None, None
-    if resume:
+    if started:
+        remove_stale_temporaries(ckpt_dir)
         ck = torch.load(last_path, map_location=device, weights_only=False)
         model.load_state_dict(ck["model"])
         opt.load_state_dict(ck["optimizer"])
+        sched.load_state_dict(ck["schedule"])
         torch.set_rng_state(ck["torch_rng"])
         if device.type == "cuda" and ck.get("cuda_rng") is not None:
             torch.cuda.set_rng_state_all(ck["cuda_rng"])
@@ -160,77 +197,119 @@ def train(
         missing = [r for r in history if r["epoch"] not in logged]
         if missing:  # killed between the checkpoint and the metrics append
             _append_rows(metrics_path, missing)
-    else:
+    else:  # a new run, or one killed before its first checkpoint: start (again) from scratch
         ckpt_dir.mkdir(parents=True, exist_ok=True)
-        info = model_info(cfg.model, VariantCfg(cfg.variant).channels, 2 * len(fingers))
-        meta = {
-            "train": asdict(cfg),
-            "model": {k: v for k, v in info.items() if isinstance(v, int | float | str)},
-            "dataset": {"path": str(Path(cfg.data).resolve()),
-                        "fingerprint": tables.fingerprint(),
-                        "n_train_configs": len(train_ds.rows), "n_val_configs": len(val_ds.rows),
-                        "n_train_pairs": len(train_ds), "n_val_pairs": len(val_ds)},
-            "device": str(device),
-            "versions": {"torch": torch.__version__, "numpy": np.__version__,
-                         "python": platform.python_version()},
-        }
-        (out / "config.json").write_text(json.dumps(meta, indent=2))
+        remove_stale_temporaries(ckpt_dir)
+        metrics_path.unlink(missing_ok=True)
+        atomic_write_json(out / "config.json", _run_meta(cfg, model, tables, fingerprint,
+                                                         train_ds, val_ds, device, init_note))
+        if init_note and progress:
+            tqdm.write(f"init: {init_note['summary']}")
 
     def save_last(epoch: int, batch: int) -> None:
-        _atomic_save({
+        atomic_save({
             "model": model.state_dict(), "optimizer": opt.state_dict(),
-            "torch_rng": torch.get_rng_state(),
+            "schedule": sched.state_dict(), "torch_rng": torch.get_rng_state(),
             "cuda_rng": torch.cuda.get_rng_state_all() if device.type == "cuda" else None,
             "epoch": epoch, "batch": batch, "run_sum": run_sum, "run_n": run_n,
             "history": history, "best_value": best_value, "best_epoch": best_epoch,
             "cfg": asdict(cfg),
         }, last_path)
 
-    loss_fn = torch.nn.MSELoss()
-    for epoch in range(start_epoch, cfg.epochs):
-        t0 = time.perf_counter()
-        train_ds.set_epoch(epoch)
-        perm = np.random.default_rng([cfg.seed, epoch]).permutation(len(train_ds))
-        model.train()
-        first = start_batch if epoch == start_epoch else 0
-        if first == 0:
+    try:
+        for epoch in range(start_epoch, cfg.epochs):
+            t0 = time.perf_counter()
+            perm = np.random.default_rng([cfg.seed, epoch]).permutation(len(train_ds))
+            _train_mode(model, cfg.freeze)
+            first = start_batch if epoch == start_epoch else 0
+            if first == 0:
+                run_sum, run_n = 0.0, 0
+            bar = tqdm(total=n_batches, initial=first, desc=f"epoch {epoch + 1}/{cfg.epochs}",
+                       disable=not progress, leave=False, unit="batch")
+            for b, batch in train_ds.batches(perm, cfg.batch_size, epoch, first):
+                x, y = batch["image"].to(device), batch["target"].to(device)
+                opt.zero_grad(set_to_none=True)
+                loss = masked_mse(model(x), y, batch["found"].to(device))
+                if not torch.isfinite(loss):
+                    raise UserError(
+                        f"epoch {epoch + 1}, batch {b + 1}: the training loss is "
+                        f"{float(loss.detach())}; training diverged; lower --lr (now {cfg.lr:g})")
+                loss.backward()
+                opt.step()
+                sched.step()
+                run_sum += float(loss.detach()) * len(y)
+                run_n += len(y)
+                bar.update(1)
+                bar.set_postfix(loss=f"{run_sum / run_n:.4g}")
+                if cfg.checkpoint_every and (b + 1) % cfg.checkpoint_every == 0 \
+                        and b + 1 < n_batches:
+                    save_last(epoch, b + 1)
+                if on_batch is not None:
+                    on_batch(epoch, b)
+            bar.close()
+            train_time = time.perf_counter() - t0
+            val_loss, pred = evaluate_loss(model, val_ds, device, cfg.eval_batch_size)
+            row = {"epoch": epoch + 1, "train_loss": run_sum / max(run_n, 1),
+                   "val_loss": val_loss, "lr": float(opt.param_groups[0]["lr"])}
+            for f, m in score_predictions(pred, val_ds).items():
+                row |= {f"val_{f}_{k}": v for k, v in m.items()}
+            row |= {"train_s": train_time, "epoch_s": time.perf_counter() - t0}
+            value, higher = _selection_value(row, cfg.select, fingers)
+            improved = best_value is None or (value > best_value if higher else value < best_value)
+            if improved:
+                best_value, best_epoch = value, epoch + 1
+                atomic_save({"model": model.state_dict(), "epoch": epoch + 1,
+                             "select": cfg.select, "value": value, "cfg": asdict(cfg)},
+                            best_path)
+            history.append(row)
             run_sum, run_n = 0.0, 0
-        bar = tqdm(range(first, n_batches), desc=f"epoch {epoch + 1}/{cfg.epochs}",
-                   total=n_batches, initial=first, disable=not progress, leave=False)
-        for b in bar:
-            batch = train_ds.batch(perm[b * cfg.batch_size:(b + 1) * cfg.batch_size])
-            x, y = batch["image"].to(device), batch["target"].to(device)
-            opt.zero_grad(set_to_none=True)
-            loss = loss_fn(model(x), y)
-            loss.backward()
-            opt.step()
-            run_sum += float(loss.detach()) * len(y)
-            run_n += len(y)
-            bar.set_postfix(loss=f"{run_sum / run_n:.4g}")
-            if cfg.checkpoint_every and (b + 1) % cfg.checkpoint_every == 0 and b + 1 < n_batches:
-                save_last(epoch, b + 1)
-            if on_batch is not None:
-                on_batch(epoch, b)
-        train_time = time.perf_counter() - t0
-        val_loss, pred = evaluate_loss(model, val_ds, device, cfg.eval_batch_size)
-        row = {"epoch": epoch + 1, "train_loss": run_sum / max(run_n, 1), "val_loss": val_loss}
-        for f, m in score_predictions(pred, val_ds).items():
-            row |= {f"val_{f}_{k}": v for k, v in m.items()}
-        row |= {"train_s": train_time, "epoch_s": time.perf_counter() - t0}
-        value, higher = _selection_value(row, cfg.select, fingers)
-        improved = best_value is None or (value > best_value if higher else value < best_value)
-        if improved:
-            best_value, best_epoch = value, epoch + 1
-            _atomic_save({"model": model.state_dict(), "epoch": epoch + 1,
-                          "select": cfg.select, "value": value, "cfg": asdict(cfg)}, best_path)
-        history.append(row)
-        run_sum, run_n = 0.0, 0
-        save_last(epoch + 1, 0)
-        _append_rows(metrics_path, [row])
-        if progress:
-            tqdm.write(
-                f"epoch {epoch + 1}/{cfg.epochs}: train loss {row['train_loss']:.4g}, "
-                f"val loss {val_loss:.4g}, {cfg.select} {value:.4g}"
-                + (" (best)" if improved else "") + f", {row['epoch_s']:.1f} s"
-            )
+            save_last(epoch + 1, 0)
+            _append_rows(metrics_path, [row])
+            if progress:
+                tqdm.write(
+                    f"epoch {epoch + 1}/{cfg.epochs}: train loss {row['train_loss']:.4g}, "
+                    f"val loss {val_loss:.4g}, {cfg.select} {value:.4g}"
+                    + (" (best)" if improved else "") + f", {row['epoch_s']:.1f} s")
+    finally:
+        train_ds.close()
+        val_ds.close()
     return out
+
+
+def _train_mode(model: torch.nn.Module, freeze: str) -> None:
+    """Training mode; frozen feature layers stay in evaluation mode (batch-norm statistics
+    fixed)."""
+    model.train()
+    if freeze == "features":
+        for name, module in model.named_modules():
+            if name.endswith("features"):
+                module.eval()
+
+
+def _run_meta(cfg, model, tables, fingerprint, train_ds, val_ds, device, init_note) -> dict:
+    from vistac_learn.models import count_macs
+
+    size = input_size(cfg, model)
+    per_sample = (*(() if not hasattr(model, "n_fingers") else (model.n_fingers,)),
+                  build_view(cfg).channels, size, size)
+    return {
+        "train": asdict(cfg),
+        "model": {"name": cfg.model, "input_size": size,
+                  "params": sum(p.numel() for p in model.parameters()),
+                  "trainable_params": sum(p.numel() for p in trainable_parameters(model)),
+                  "macs_per_sample": _macs(model, per_sample, count_macs)},
+        "dataset": {"path": str(Path(cfg.data).resolve()), "fingerprint": fingerprint,
+                    "n_train_configs": len(train_ds.rows), "n_val_configs": len(val_ds.rows),
+                    "n_train_samples": len(train_ds), "n_val_samples": len(val_ds)},
+        "init": init_note,
+        "device": str(device),
+        "versions": {"torch": torch.__version__, "numpy": np.__version__,
+                     "python": platform.python_version()},
+    }
+
+
+def _macs(model, shape, count_macs) -> int:
+    """MACs of one sample (every finger's crop for per-finger models)."""
+    if hasattr(model, "n_fingers"):
+        return model.n_fingers * count_macs(model.net, shape[1:])
+    return count_macs(model, shape)

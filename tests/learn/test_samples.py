@@ -1,0 +1,127 @@
+"""vistac_learn.data.samples and views: samples rendered per batch, targets, augmentation."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from learn_fixtures import make_dataset
+
+from vistac.dataset import open_dataset
+from vistac.errors import UserError
+from vistac_learn.data.fingertips import fingertip_table
+from vistac_learn.data.samples import AugmentCfg, RotationCfg, SampleSet, fingers_of
+from vistac_learn.data.views import Aug, make_view, mirror_labels, tip_crop
+
+
+@pytest.fixture(scope="module")
+def ds(tmp_path_factory):
+    root = make_dataset(tmp_path_factory.mktemp("data") / "ds", n=8, repeats=3, size=128)
+    t = open_dataset(root)
+    return t, fingertip_table(t, cache_dir=root.parent / "cache")
+
+
+def _set(ds, view="tip", **kw):
+    t, tips = ds
+    base = dict(view=make_view(view), size=32, fingers=("index", "thumb"), tips=tips, threads=1)
+    return SampleSet(t, t.rows("train"), **(base | kw))
+
+
+def test_targets_and_items(ds):
+    t, _ = ds
+    rows = t.rows("train")
+    mean = _set(ds, view="edge-crop", rotations=RotationCfg("fixed", 3, 18.0))
+    assert len(mean) == len(rows) * 3
+    b = mean.batch(np.arange(len(mean)))
+    assert b["image"].shape == (len(mean), 1, 32, 32) and b["target"].shape == (len(mean), 4)
+    np.testing.assert_allclose(b["target"][:, :2].numpy(),
+                               t.mean_label("index")[b["row"].numpy()], rtol=1e-6)
+    press = _set(ds, target="press", seed=1, fingers=("thumb",))
+    e0, e1 = press.targets(np.arange(len(press)), 0), press.targets(np.arange(len(press)), 1)
+    np.testing.assert_array_equal(e0, press.targets(np.arange(len(press)), 0))
+    assert not np.array_equal(e0, e1)
+    for tgt, r in zip(e1, press.item_row, strict=True):  # every target is one of the presses
+        assert np.isclose(t.cones["thumb"][r], tgt, atol=1e-6).all(axis=1).any()
+    every = _set(ds, target="all")
+    assert len(every) == len(rows) * 3
+    assert fingers_of("both") == ("index", "thumb")
+    with pytest.raises(UserError):
+        fingers_of("pinky")
+
+
+def test_tip_view_gives_one_finger_aligned_crop_per_finger(ds):
+    s = _set(ds)
+    b = s.batch(np.arange(len(s)))
+    assert b["image"].shape == (len(s), 2, 3, 32, 32) and b["found"].all()
+    img = (b["image"][0, 0].numpy() * 255).astype(np.uint8)
+    green = (img[1] > 150) & (img[0] < 100)
+    # the finger points up: its pixels fill the lower half of the crop, not the upper
+    assert green[20:].mean() > 0.3 and green[:8].mean() < 0.05
+
+
+def test_augmentation_is_per_sample_deterministic_and_bounded(ds):
+    aug = AugmentCfg()
+    s = _set(ds, augment=aug, seed=4)
+    a = [s.aug(i, 3) for i in range(len(s))]
+    assert a == [s.aug(i, 3) for i in range(len(s))]  # replayable (resume)
+    assert a != [s.aug(i, 4) for i in range(len(s))]  # drawn anew each epoch
+    for x in a:
+        assert abs(x.shift[0]) <= aug.shift and abs(x.turn) <= aug.turn
+        assert abs(x.scale - 1) <= aug.scale
+    flips = [_set(ds, augment=aug, seed=k).aug(0, 0).mirror for k in range(40)]
+    assert 5 < sum(flips) < 35
+
+
+def test_mirror_flips_the_view_and_negates_r_y(ds):
+    """A mirrored scene has mirrored forces: r_y changes sign, r_z does not (the simulator
+    agrees: tests/sim/test_mirror_physics.py)."""
+    t, tips = ds
+    s = _set(ds, augment=AugmentCfg(mirror=True, shift=0, turn=0, scale=0), seed=2)
+    items = np.arange(len(s))
+    b = s.batch(items)
+    plain = _set(ds).batch(items)
+    for i in items:
+        mirrored = s.aug(int(i), 0).mirror
+        expect = plain["target"][i].numpy().copy()
+        if mirrored:
+            expect = mirror_labels(expect.reshape(2, 2)).ravel()
+            np.testing.assert_array_equal(b["image"][i].numpy(),
+                                          plain["image"][i].numpy()[..., ::-1])
+        else:
+            np.testing.assert_array_equal(b["image"][i].numpy(), plain["image"][i].numpy())
+        np.testing.assert_allclose(b["target"][i].numpy(), expect, rtol=1e-6)
+
+
+def test_rotating_the_top_view_leaves_labels_and_tip_crops_unchanged(ds):
+    """Forces are in the fingertip frame, so a rotated top view keeps its labels; the tip view
+    turns every crop to its finger, so the model even sees (nearly) the same pixels."""
+    import cv2
+
+    from vistac_learn.data.fingertips import locate_fingertips
+    from vistac_learn.data.variants import read_rgb, rotation_matrix
+
+    t, _ = ds
+    rows = t.rows("train")
+    study = _set(ds, view="color-crop", rotations=RotationCfg("fixed", 4, 90.0))
+    tgt = study.targets(np.arange(len(study)))
+    for k in range(4):
+        np.testing.assert_array_equal(tgt[k::4], tgt[0::4])
+    colours = {f: t.finger_rgb(f) for f in ("index", "thumb")}
+    bg = tuple(int(round(255 * c)) for c in t.table_rgb)
+    for row in rows[:3]:
+        img = read_rgb(t.image_path(row))
+        h, w = img.shape[:2]
+        base = locate_fingertips(img, colours)
+        rot = cv2.warpAffine(img, rotation_matrix(90.0, w, h), (w, h),
+                             borderMode=cv2.BORDER_CONSTANT, borderValue=bg)
+        turned = locate_fingertips(rot, colours)
+        for f in ("index", "thumb"):
+            a = tip_crop(img, base[f], 32).astype(float)
+            b = tip_crop(rot, turned[f], 32).astype(float)
+            assert np.abs(a - b).mean() < 12.0, (row, f)  # interpolation only
+
+
+def test_identity_augmentation_changes_nothing(ds):
+    t, tips = ds
+    img = np.zeros((64, 64, 3), np.uint8)
+    tip = tips.get(int(t.rows("train")[0]), "index")
+    np.testing.assert_array_equal(tip_crop(img, tip, 16), tip_crop(img, tip, 16, aug=Aug()))

@@ -1,0 +1,226 @@
+"""The samples of one split, rendered batch by batch from the dataset's images.
+
+A sample is (configuration, rotation[, press]). Its image is decoded from the dataset's PNG and
+turned into the model's input by a view (`vistac_learn.data.views`) when its batch is asked for;
+nothing per rotation or per augmentation is stored, so memory stays flat as the dataset grows
+(one batch of decoded images at a time, plus the per-configuration tables). A batch's images are
+decoded and rendered by a small thread pool (OpenCV releases the GIL) between training steps.
+
+Rotations (`RotationCfg`): ``none`` (one sample per configuration), ``fixed`` (n samples per
+configuration at angles k * step, the study's 20 x 18 degrees) or ``random`` (n samples per
+configuration, each at an angle drawn anew every epoch). Augmentation (`AugmentCfg`, training
+only): mirror and, for the tip view, crop jitter, drawn per sample from (seed, epoch, sample), so
+a resumed run replays exactly what an uninterrupted one saw.
+
+Targets from the repeats of a configuration (`target`):
+
+- ``"mean"`` (default): the mean of the repeats' unit vectors, renormalised (a zero mean falls
+  back to (0, -1)); the least noisy target.
+- ``"press"``: one repeat per sample, drawn anew each epoch from (seed, epoch).
+- ``"all"``: every press is its own sample.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import torch
+
+from vistac.config import Config, param
+from vistac.dataset import FINGERS, DatasetTables
+from vistac.errors import UserError
+from vistac_learn.data.fingertips import FingertipTable, read_rgb
+from vistac_learn.data.views import IDENTITY, Aug, SampleInfo, View
+
+TARGETS = ("mean", "press", "all")
+FINGER_CHOICES = (*FINGERS, "both")  # the values of a `--finger` option
+ROTATION_MODES = ("fixed", "random", "none")
+
+
+def fingers_of(finger: str) -> tuple[str, ...]:
+    """Fingers named by a `--finger` option: ``index``, ``thumb`` or ``both``."""
+    if finger == "both":
+        return FINGERS
+    if finger in FINGERS:
+        return (finger,)
+    raise UserError(f"--finger must be {', '.join(FINGER_CHOICES)}, not {finger!r}")
+
+
+@dataclass(frozen=True)
+class RotationCfg:
+    """How many samples of each configuration, at which angles of the top view.
+
+    Attributes:
+        mode: ``fixed``, ``random`` or ``none`` (see the module docstring).
+        n: Samples per configuration (``fixed`` and ``random``).
+        step_deg: Step of the fixed angles, degrees counter-clockwise in the image.
+    """
+
+    mode: Literal["fixed", "random", "none"] = "none"
+    n: int = 20
+    step_deg: float = 18.0
+
+    @property
+    def count(self) -> int:
+        """Samples per configuration."""
+        return 1 if self.mode == "none" else self.n
+
+
+@dataclass(frozen=True)
+class AugmentCfg(Config):
+    """Training-time augmentation, drawn per sample (identity at evaluation)."""
+
+    mirror: bool = param(True, help="flip half of the samples left-right (r_y -> -r_y)")
+    shift: float = param(0.1, ge=0, le=1, help="tip view: crop-centre jitter, fingertip radii")
+    turn: float = param(2.0, ge=0, le=45, help="tip view: crop-angle jitter, degrees")
+    scale: float = param(0.05, ge=0, lt=0.5, help="tip view: crop-side jitter, fraction")
+
+    def draw(self, rng: np.random.Generator, angle: float) -> Aug:
+        """One sample's parameters."""
+        u = rng.uniform(-1.0, 1.0, 4)
+        return Aug(angle=angle, mirror=bool(self.mirror and rng.random() < 0.5),
+                   shift=(float(u[0] * self.shift), float(u[1] * self.shift)),
+                   turn=float(u[2] * self.turn), scale=float(1.0 + u[3] * self.scale))
+
+
+class SampleSet:
+    """The samples of some configuration rows, served as rendered batches.
+
+    Args:
+        tables: The dataset.
+        rows: Configuration rows.
+        view: What the model sees.
+        size: Side of the rendered input.
+        fingers: Fingers whose labels form the target, in order (2 values per finger).
+        target: ``mean``, ``press`` or ``all``.
+        seed: Seed of press draws, random angles and augmentation.
+        rotations: Samples per configuration and their angles.
+        augment: Augmentation (None: none, as at evaluation).
+        tips: Located fingertips (required by views that need them).
+        threads: Rendering threads.
+    """
+
+    def __init__(self, tables: DatasetTables, rows: np.ndarray, view: View, size: int,
+                 fingers: tuple[str, ...], target: str = "mean", seed: int = 0,
+                 rotations: RotationCfg = RotationCfg(), augment: AugmentCfg | None = None,
+                 tips: FingertipTable | None = None, threads: int = 2):
+        if target not in TARGETS:
+            raise UserError(f"target must be one of {', '.join(TARGETS)}, not {target!r}")
+        if view.needs_tips and tips is None:
+            raise ValueError(f"view {view.name} needs located fingertips")
+        for f in view.needs_boxes:
+            if not tables.has_boxes(f):
+                raise UserError(f"{tables.root / 'configs.parquet'}: view {view.name} needs "
+                                f"columns bbox_{f}_x|y|w|h with finite values")
+        self.tables, self.view, self.size, self.fingers = tables, view, size, tuple(fingers)
+        self.target, self.seed, self.rotations, self.augment = target, seed, rotations, augment
+        self.tips, self.threads = tips, threads
+        self.rows = np.asarray(rows, dtype=np.int64)
+        n_rot = rotations.count
+        self.item_row = np.repeat(self.rows, n_rot)
+        self.item_rot = np.tile(np.arange(n_rot), len(self.rows))
+        self.item_press = np.full(len(self.item_row), -1, dtype=np.int64)
+        if target == "all":
+            reps = np.array([len(tables.cones[self.fingers[0]][r]) for r in self.item_row])
+            self.item_row = np.repeat(self.item_row, reps)
+            self.item_rot = np.repeat(self.item_rot, reps)
+            self.item_press = np.concatenate([np.arange(k) for k in reps]).astype(np.int64)
+        self._mean = np.concatenate([tables.mean_label(f) for f in self.fingers], axis=1)
+        ok = [tips.frame[f"{f}_ok"].to_numpy() if view.needs_tips else
+              np.ones(len(tables.configs), bool) for f in self.fingers]
+        self._found = np.stack(ok, axis=1)
+        self._table_rgb = tables.table_rgb
+        self._pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
+        self.mirror_all = False  # test-time augmentation: every sample mirrored
+
+    def __len__(self) -> int:
+        return len(self.item_row)
+
+    def close(self) -> None:
+        """Stop the rendering threads."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
+
+    # ------------------------------------------------------------------ per-sample parameters
+    def aug(self, item: int, epoch: int) -> Aug:
+        """The sample's augmentation at an epoch (identity without `augment`)."""
+        mode, rot = self.rotations.mode, int(self.item_rot[item])
+        if mode == "fixed":
+            angle = rot * self.rotations.step_deg
+        elif mode == "random":
+            angle = float(np.random.default_rng([self.seed, epoch, item, 1]).uniform(0, 360))
+        else:
+            angle = 0.0
+        if self.augment is None:
+            return Aug(angle=angle, mirror=self.mirror_all) if angle or self.mirror_all \
+                else IDENTITY
+        return self.augment.draw(np.random.default_rng([self.seed, epoch, item, 2]), angle)
+
+    def targets(self, items: np.ndarray, epoch: int = 0) -> np.ndarray:
+        """(len(items), 2F) float32 targets, before augmentation."""
+        items = np.asarray(items, dtype=np.int64)
+        rows = self.item_row[items]
+        if self.target == "mean":
+            return self._mean[rows].astype(np.float32)
+        press = self.item_press[items]
+        if self.target == "press":
+            rng = np.random.default_rng([self.seed, epoch])
+            draws = rng.random(len(self.item_row))[items]
+            press = np.array([int(d * len(self.tables.cones[self.fingers[0]][r]))
+                              for d, r in zip(draws, rows, strict=True)])
+        out = [np.stack([self.tables.cones[f][r][k] for r, k in zip(rows, press, strict=True)])
+               for f in self.fingers]
+        return np.concatenate(out, axis=1).astype(np.float32)
+
+    def found(self, items: np.ndarray) -> np.ndarray:
+        """(len(items), F) whether each finger was located (always True for views without)."""
+        return self._found[self.item_row[np.asarray(items, dtype=np.int64)]]
+
+    # ------------------------------------------------------------------ rendering
+    def info(self, row: int) -> SampleInfo:
+        """Boxes, fingertips and background of a configuration row."""
+        boxes = {f: self.tables.box(row, f) for f in self.view.needs_boxes}
+        tips = {f: self.tips.get(row, f) for f in self.fingers} if self.view.needs_tips else {}
+        return SampleInfo(boxes, tips, self._table_rgb)
+
+    def render(self, item: int, epoch: int) -> np.ndarray:
+        """One sample's model input (uint8)."""
+        row = int(self.item_row[item])
+        rgb = read_rgb(self.tables.image_path(row))
+        return self.view.render(rgb, self.info(row), self.aug(item, epoch), self.size,
+                                self.fingers)
+
+    def batch(self, items: np.ndarray, epoch: int = 0) -> dict[str, torch.Tensor]:
+        """Rendered inputs, augmented targets, found-masks and ids of some samples."""
+        items = np.asarray(items, dtype=np.int64)
+        if self._pool is not None and len(items) > 1:
+            imgs = list(self._pool.map(lambda i: self.render(int(i), epoch), items))
+        else:
+            imgs = [self.render(int(i), epoch) for i in items]
+        target = self.targets(items, epoch)
+        mirrored = np.array([self.aug(int(i), epoch).mirror for i in items], bool)
+        target[mirrored, 0::2] *= -1  # r_y of every finger changes sign in a mirrored view
+        return {
+            "image": torch.from_numpy(np.stack(imgs).astype(np.float32) / 255.0),
+            "target": torch.from_numpy(target),
+            "found": torch.from_numpy(self.found(items)),
+            "row": torch.from_numpy(self.item_row[items]),
+            "rot": torch.from_numpy(self.item_rot[items]),
+        }
+
+    def batches(self, order: np.ndarray, batch_size: int, epoch: int = 0,
+                start: int = 0) -> Iterator[tuple[int, dict[str, torch.Tensor]]]:
+        """(batch index, batch) for the samples in `order`, from batch `start` on.
+
+        Batches are rendered when asked for, not ahead: a rendering thread running beside
+        torch's own threads oversubscribes a small CPU (measured on 2 cores: a training step
+        4 to 8 times slower), while rendering a batch costs a fraction of its training step.
+        """
+        n = (len(order) + batch_size - 1) // batch_size
+        for b in range(start, n):
+            yield b, self.batch(order[b * batch_size:(b + 1) * batch_size], epoch)

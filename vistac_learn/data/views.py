@@ -1,0 +1,176 @@
+"""What a model sees: image views of a configuration, registered by name, rendered per batch.
+
+A view turns one decoded top-view image (plus what is known about it: finger boxes, located
+fingertips) and one draw of augmentation parameters into the model's input. Nothing is cached
+but the per-configuration fingertip table: images are decoded and rendered batch by batch, so
+memory and disk stay flat however many configurations or augmentations a run uses.
+
+Views:
+
+- ``tip`` (the default): per finger, a square crop centred on the front of the fingertip and
+  rotated so that the finger points up (`vistac_learn.data.fingertips` finds tip and axis in the
+  image), side `span` fingertip radii, in colour. The thumb's crop is mirrored left-right, so
+  that both fingers' labels read in the index finger's convention (the thumb's y axis is the
+  index finger's mirrored, contracts.md) and one network serves both. Output (F, 3, S, S).
+- The study's ``<color|edge>-<base|crop|index|thumb>`` (thesis.md section 4,
+  `vistac_learn.data.variants`): the whole image rotated, optionally cut to the finger boxes.
+  Output (C, S, S).
+
+Augmentations (`Aug`, drawn per sample by `vistac_learn.data.augment`) and what they do to the
+labels, which are forces in each fingertip's own frame:
+
+- rotation of the top view (study views): the labels do not change;
+- mirror (left-right flip of the view): r_y changes sign, r_z does not. A mirrored scene is a
+  physically valid scene whose forces are the mirror image, and a fingertip frame built by the
+  same rule from the mirrored finger has its y axis mirrored too (tested against the simulator);
+- crop jitter (tip view): the crop centre moves by a fraction of a radius, its angle by a few
+  degrees and its side by a few per cent, as errors of the fingertip locator would; labels
+  unchanged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from vistac.dataset import FINGERS
+from vistac.errors import UserError
+from vistac_learn.data.fingertips import Fingertip
+from vistac_learn.data.variants import VARIANTS, VariantCfg, auto_canny, render_variant
+
+TIP_VIEW = "tip"
+VIEWS = (TIP_VIEW, *VARIANTS)
+
+
+@dataclass(frozen=True)
+class Aug:
+    """One sample's augmentation parameters (identity by default).
+
+    Attributes:
+        angle: Rotation of the top view, degrees counter-clockwise (study views).
+        mirror: Flip the view left-right (labels: r_y -> -r_y).
+        shift: Crop-centre offset in fingertip radii, (along the finger, across it) (tip view).
+        turn: Crop-angle offset, degrees (tip view).
+        scale: Crop-side factor (tip view).
+    """
+
+    angle: float = 0.0
+    mirror: bool = False
+    shift: tuple[float, float] = (0.0, 0.0)
+    turn: float = 0.0
+    scale: float = 1.0
+
+
+IDENTITY = Aug()
+
+
+def mirror_labels(labels: np.ndarray) -> np.ndarray:
+    """Labels (..., 2) = (r_y, r_z) of the mirrored view: (-r_y, r_z)."""
+    out = np.array(labels, dtype=np.float64, copy=True)
+    out[..., 0] *= -1
+    return out
+
+
+@dataclass
+class SampleInfo:
+    """What a view may use besides the pixels of one configuration's image."""
+
+    boxes: dict[str, np.ndarray | None] = field(default_factory=dict)
+    tips: dict[str, Fingertip] = field(default_factory=dict)
+    table_rgb: tuple[float, float, float] = (0.81, 0.81, 0.81)
+
+
+class View:
+    """Base of the views: a name, channels, whether it yields one crop per finger."""
+
+    name: str = ""
+    channels: int = 3
+    per_finger: bool = False
+    needs_boxes: tuple[str, ...] = ()
+    needs_tips: bool = False
+
+    def render(self, rgb: np.ndarray, info: SampleInfo, aug: Aug, size: int,
+               fingers: tuple[str, ...]) -> np.ndarray:
+        """The model input of one sample: (C, S, S) uint8, or (F, C, S, S) when per finger."""
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class TipCfg:
+    """Geometry of the fingertip crop, in fingertip radii (so that it is scale-free)."""
+
+    span: float = 4.0  # side of the crop
+    forward: float = 1.0  # crop centre ahead of the tip centre (1: the front of the pad)
+
+
+def tip_crop(rgb: np.ndarray, tip: Fingertip, size: int, cfg: TipCfg = TipCfg(),
+             aug: Aug = IDENTITY, mirror: bool = False) -> np.ndarray:
+    """Fingertip-centred, finger-aligned (finger pointing up) crop, (3, S, S) uint8.
+
+    One similarity warp from the source image: centre ``tip + forward * r * axis`` (plus the
+    jitter), the axis turned to point up (image -v), ``span * r`` source pixels onto `size`.
+    `mirror` flips the result left-right (the thumb's convention, or the mirror augmentation).
+    A finger that was not found gives a crop of zeros.
+    """
+    if not tip.ok:
+        return np.zeros((3, size, size), np.uint8)
+    a = tip.axis
+    across = np.array([-a[1], a[0]])
+    r = tip.radius
+    centre = tip.tip + r * (cfg.forward + aug.shift[0]) * a + r * aug.shift[1] * across
+    angle = np.degrees(np.arctan2(a[1], a[0])) + 90.0 + aug.turn  # 0 when a points up
+    scale = size / (cfg.span * r * aug.scale)
+    m = cv2.getRotationMatrix2D((float(centre[0]), float(centre[1])), float(angle), float(scale))
+    m[:, 2] += (size - 1) / 2.0 - centre  # the centre lands on the crop's centre
+    flags = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
+    out = cv2.warpAffine(rgb, m, (size, size), flags=flags, borderMode=cv2.BORDER_REPLICATE)
+    if mirror:
+        out = out[:, ::-1]
+    return np.ascontiguousarray(out.transpose(2, 0, 1))
+
+
+class TipView(View):
+    """Per finger, the fingertip-centred, finger-aligned colour crop (thumb mirrored)."""
+
+    name, channels, per_finger, needs_tips = TIP_VIEW, 3, True, True
+
+    def __init__(self, cfg: TipCfg = TipCfg()):
+        self.cfg = cfg
+
+    def render(self, rgb, info, aug, size, fingers):
+        return np.stack([
+            tip_crop(rgb, info.tips[f], size, self.cfg, aug, mirror=(f == "thumb") != aug.mirror)
+            for f in fingers
+        ])
+
+
+class StudyView(View):
+    """One of the study's variants (thesis.md section 4), rendered at the sample's angle."""
+
+    def __init__(self, name: str, margin: float = 0.05):
+        self.cfg = VariantCfg(name, margin=margin)
+        self.name = name
+        self.channels = self.cfg.channels
+        self.needs_boxes = self.cfg.region_fingers
+
+    def render(self, rgb, info, aug, size, fingers):
+        cfg = VariantCfg(self.cfg.name, size, self.cfg.margin)
+        edges = auto_canny(rgb, cfg.canny_low_ratio, cfg.canny_floor) if cfg.mode == "edge" \
+            else None
+        out = render_variant(rgb, info.boxes, aug.angle, cfg, info.table_rgb, edges)
+        return np.ascontiguousarray(out[:, :, ::-1]) if aug.mirror else out
+
+
+def make_view(name: str, margin: float = 0.05, tip: TipCfg = TipCfg()) -> View:
+    """The view registered under `name` (`VIEWS`)."""
+    if name == TIP_VIEW:
+        return TipView(tip)
+    if name in VARIANTS:
+        return StudyView(name, margin)
+    raise UserError(f"unknown view {name!r}; choose from {', '.join(VIEWS)}")
+
+
+__all__ = ["Aug", "IDENTITY", "FINGERS", "SampleInfo", "StudyView", "TipCfg", "TipView", "VIEWS",
+           "View", "make_view", "mirror_labels", "tip_crop"]
