@@ -23,6 +23,7 @@ from vistac.errors import UserError
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.evaluate.run import evaluate_run
 from vistac_learn.metrics import cone_metrics
+from vistac_learn.models.tipnet import apply_model
 from vistac_learn.train.config import build_model, build_samples, input_size, protocol_cfg
 from vistac_learn.train.loop import masked_mse, train
 
@@ -50,7 +51,7 @@ def _train_loss(run, split: str = "train") -> float:
     b = ds.batch(np.arange(len(ds)))
     ds.close()
     with torch.no_grad():
-        return float(masked_mse(model(b["image"]), b["target"], b["found"]))
+        return float(masked_mse(apply_model(model, b, "cpu"), b["target"], b["found"]))
 
 
 def _mean_predictor_loss(data, fingers=("index", "thumb"), split="train") -> float:

@@ -10,7 +10,7 @@ from vistac.dataset import open_dataset
 from vistac.errors import UserError
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import AugmentCfg, RotationCfg, SampleSet, fingers_of
-from vistac_learn.data.views import Aug, make_view, mirror_labels, tip_crop
+from vistac_learn.data.views import SIDE_FEATURES, Aug, make_view, mirror_labels, tip_crop
 
 
 @pytest.fixture(scope="module")
@@ -125,3 +125,27 @@ def test_identity_augmentation_changes_nothing(ds):
     img = np.zeros((64, 64, 3), np.uint8)
     tip = tips.get(int(t.rows("train")[0]), "index")
     np.testing.assert_array_equal(tip_crop(img, tip, 16), tip_crop(img, tip, 16, aug=Aug()))
+
+
+def test_side_features_say_where_the_other_finger_is(ds):
+    """In the crop frame (finger pointing up) the other fingertip's direction is rotation-free;
+    a mirror negates its x component, like the crop it goes with."""
+    t, tips = ds
+    s = _set(ds)
+    plain = s.batch(np.arange(len(s)))["side"].numpy()
+    assert plain.shape == (len(s), 2, SIDE_FEATURES)
+    np.testing.assert_allclose(np.hypot(plain[..., 0], plain[..., 1]), 1.0, rtol=1e-5)
+    np.testing.assert_allclose(np.hypot(plain[..., 3], plain[..., 4]), 1.0, rtol=1e-5)
+    # the fingers face each other (the fixture presses opposite edges): the other tip lies
+    # ahead of each finger (y > 0 in the crop frame), and the distances agree
+    assert (plain[..., 1] > 0).all()
+    np.testing.assert_allclose(plain[:, 0, 2] + np.log(tips.frame["index_radius"].to_numpy()[
+        s.item_row]), plain[:, 1, 2] + np.log(tips.frame["thumb_radius"].to_numpy()[
+            s.item_row]), rtol=1e-5)
+    m = _set(ds, augment=AugmentCfg(mirror=True, shift=0, turn=0, scale=0), seed=2)
+    side = m.batch(np.arange(len(m)))["side"].numpy()
+    for i in range(len(m)):
+        expect = plain[i].copy()
+        if m.aug(i, 0).mirror:
+            expect[:, [0, 3]] *= -1
+        np.testing.assert_allclose(side[i], expect, atol=1e-6)

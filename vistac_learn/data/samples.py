@@ -185,28 +185,31 @@ class SampleSet:
     def info(self, row: int) -> SampleInfo:
         """Boxes, fingertips and background of a configuration row."""
         boxes = {f: self.tables.box(row, f) for f in self.view.needs_boxes}
-        tips = {f: self.tips.get(row, f) for f in self.fingers} if self.view.needs_tips else {}
+        tips = {f: self.tips.get(row, f) for f in FINGERS} if self.view.needs_tips else {}
         return SampleInfo(boxes, tips, self._table_rgb)
 
-    def render(self, item: int, epoch: int) -> np.ndarray:
-        """One sample's model input (uint8)."""
+    def render(self, item: int, epoch: int) -> tuple[np.ndarray, np.ndarray]:
+        """One sample's model input: pixels (uint8) and side features (float32)."""
         row = int(self.item_row[item])
         rgb = read_rgb(self.tables.image_path(row))
-        return self.view.render(rgb, self.info(row), self.aug(item, epoch), self.size,
-                                self.fingers)
+        info, aug = self.info(row), self.aug(item, epoch)
+        return (self.view.render(rgb, info, aug, self.size, self.fingers),
+                self.view.side(info, aug, self.fingers))
 
     def batch(self, items: np.ndarray, epoch: int = 0) -> dict[str, torch.Tensor]:
-        """Rendered inputs, augmented targets, found-masks and ids of some samples."""
+        """Rendered inputs (pixels and side features), augmented targets, found-masks and ids."""
         items = np.asarray(items, dtype=np.int64)
         if self._pool is not None and len(items) > 1:
-            imgs = list(self._pool.map(lambda i: self.render(int(i), epoch), items))
+            done = list(self._pool.map(lambda i: self.render(int(i), epoch), items))
         else:
-            imgs = [self.render(int(i), epoch) for i in items]
+            done = [self.render(int(i), epoch) for i in items]
+        imgs, side = [d[0] for d in done], [d[1] for d in done]
         target = self.targets(items, epoch)
         mirrored = np.array([self.aug(int(i), epoch).mirror for i in items], bool)
         target[mirrored, 0::2] *= -1  # r_y of every finger changes sign in a mirrored view
         return {
             "image": torch.from_numpy(np.stack(imgs).astype(np.float32) / 255.0),
+            "side": torch.from_numpy(np.stack(side).astype(np.float32)),
             "target": torch.from_numpy(target),
             "found": torch.from_numpy(self.found(items)),
             "row": torch.from_numpy(self.item_row[items]),

@@ -42,6 +42,8 @@ from vistac_learn.data.variants import VARIANTS, VariantCfg, auto_canny, render_
 
 TIP_VIEW = "tip"
 VIEWS = (TIP_VIEW, *VARIANTS)
+SIDE_FEATURES = 5  # per finger, tip view: direction (2) and log distance (1) to the other
+# fingertip, the other finger's axis (2)
 
 
 @dataclass(frozen=True)
@@ -88,6 +90,7 @@ class View:
     name: str = ""
     channels: int = 3
     per_finger: bool = False
+    side_features: int = 0
     needs_boxes: tuple[str, ...] = ()
     needs_tips: bool = False
 
@@ -96,6 +99,10 @@ class View:
         """The model input of one sample: (C, S, S) uint8, or (F, C, S, S) when per finger."""
         raise NotImplementedError
 
+    def side(self, info: SampleInfo, aug: Aug, fingers: tuple[str, ...]) -> np.ndarray:
+        """(F, side_features) float32 numbers beside the pixels (none by default)."""
+        return np.zeros((len(fingers), 0), np.float32)
+
 
 @dataclass(frozen=True)
 class TipCfg:
@@ -103,6 +110,31 @@ class TipCfg:
 
     span: float = 4.0  # side of the crop
     forward: float = 1.0  # crop centre ahead of the tip centre (1: the front of the pad)
+
+
+def crop_angle(tip: Fingertip, aug: Aug = IDENTITY) -> float:
+    """Rotation (degrees, OpenCV's sense) that turns the finger's axis to point up."""
+    return float(np.degrees(np.arctan2(tip.axis[1], tip.axis[0])) + 90.0 + aug.turn)
+
+
+def to_crop_frame(v: np.ndarray, tip: Fingertip, aug: Aug, mirror: bool) -> np.ndarray:
+    """An image-plane vector (u, v) in the crop's frame: x right, y up, mirrored if asked."""
+    t = np.radians(crop_angle(tip, aug))
+    c, s = np.cos(t), np.sin(t)
+    x = c * v[0] + s * v[1]  # OpenCV's rotation by t, counter-clockwise on screen
+    y = -(-s * v[0] + c * v[1])  # image v points down; the crop's y up
+    return np.array([-x if mirror else x, y])
+
+
+def pair_features(this: Fingertip, other: Fingertip, aug: Aug, mirror: bool) -> np.ndarray:
+    """`SIDE_FEATURES` numbers: where the other fingertip is, seen from this one's crop."""
+    if not (this.ok and other.ok):
+        return np.zeros(SIDE_FEATURES, np.float32)
+    d = other.tip - this.tip
+    dist = max(float(np.hypot(*d)), 1e-6)
+    u = to_crop_frame(d / dist, this, aug, mirror)
+    a = to_crop_frame(other.axis, this, aug, mirror)
+    return np.array([u[0], u[1], np.log(dist / this.radius), a[0], a[1]], np.float32)
 
 
 def tip_crop(rgb: np.ndarray, tip: Fingertip, size: int, cfg: TipCfg = TipCfg(),
@@ -120,9 +152,9 @@ def tip_crop(rgb: np.ndarray, tip: Fingertip, size: int, cfg: TipCfg = TipCfg(),
     across = np.array([-a[1], a[0]])
     r = tip.radius
     centre = tip.tip + r * (cfg.forward + aug.shift[0]) * a + r * aug.shift[1] * across
-    angle = np.degrees(np.arctan2(a[1], a[0])) + 90.0 + aug.turn  # 0 when a points up
     scale = size / (cfg.span * r * aug.scale)
-    m = cv2.getRotationMatrix2D((float(centre[0]), float(centre[1])), float(angle), float(scale))
+    m = cv2.getRotationMatrix2D((float(centre[0]), float(centre[1])), crop_angle(tip, aug),
+                                float(scale))
     m[:, 2] += (size - 1) / 2.0 - centre  # the centre lands on the crop's centre
     flags = cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR
     out = cv2.warpAffine(rgb, m, (size, size), flags=flags, borderMode=cv2.BORDER_REPLICATE)
@@ -135,6 +167,7 @@ class TipView(View):
     """Per finger, the fingertip-centred, finger-aligned colour crop (thumb mirrored)."""
 
     name, channels, per_finger, needs_tips = TIP_VIEW, 3, True, True
+    side_features = SIDE_FEATURES
 
     def __init__(self, cfg: TipCfg = TipCfg()):
         self.cfg = cfg
@@ -142,6 +175,13 @@ class TipView(View):
     def render(self, rgb, info, aug, size, fingers):
         return np.stack([
             tip_crop(rgb, info.tips[f], size, self.cfg, aug, mirror=(f == "thumb") != aug.mirror)
+            for f in fingers
+        ])
+
+    def side(self, info, aug, fingers):
+        other = {"index": "thumb", "thumb": "index"}
+        return np.stack([
+            pair_features(info.tips[f], info.tips[other[f]], aug, (f == "thumb") != aug.mirror)
             for f in fingers
         ])
 
@@ -172,5 +212,5 @@ def make_view(name: str, margin: float = 0.05, tip: TipCfg = TipCfg()) -> View:
     raise UserError(f"unknown view {name!r}; choose from {', '.join(VIEWS)}")
 
 
-__all__ = ["Aug", "IDENTITY", "FINGERS", "SampleInfo", "StudyView", "TipCfg", "TipView", "VIEWS",
-           "View", "make_view", "mirror_labels", "tip_crop"]
+__all__ = ["Aug", "IDENTITY", "FINGERS", "SIDE_FEATURES", "SampleInfo", "StudyView", "TipCfg",
+           "TipView", "VIEWS", "View", "make_view", "mirror_labels", "pair_features", "tip_crop"]

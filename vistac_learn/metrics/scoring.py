@@ -12,6 +12,7 @@ import numpy as np
 import torch
 
 from vistac_learn.metrics.cone import cone_metrics
+from vistac_learn.models.tipnet import apply_model
 
 # The study's results columns (thesis.md section 9), as (header, summary key).
 STUDY_COLUMNS = (
@@ -40,7 +41,7 @@ def predict(model: torch.nn.Module, ds, device: torch.device | str, batch_size: 
     model.eval()
     out = []
     for _, batch in ds.batches(np.arange(len(ds)), batch_size):
-        p = model(batch["image"].to(device)).float().cpu().numpy().astype(np.float64)
+        p = apply_model(model, batch, device).float().cpu().numpy().astype(np.float64)
         lost = ~batch["found"].numpy()
         for k in range(lost.shape[1]):
             p[lost[:, k], 2 * k:2 * k + 2] = (0.0, -1.0)

@@ -8,7 +8,10 @@ max-pooling between them), global average pooling, FC(4w, 64) -> ReLU -> FC(64, 
 
 `PerFinger` runs any registered model on each finger's crop of a per-finger view: input
 (B, F, C, S, S), output (B, 2F), one set of weights for every finger (the view mirrors the
-thumb's crop so that its labels read like the index finger's).
+thumb's crop so that its labels read like the index finger's). When the view adds side features
+per finger (B, F, K) (where the other fingertip is), the model's output is an embedding of
+`embed` numbers instead of the two label components, and a small fusion head maps embedding and
+side features to (r_y, r_z): FC(embed + K, 64) -> ReLU -> FC(64, 2).
 """
 
 from __future__ import annotations
@@ -60,22 +63,41 @@ def tipnet(in_channels: int = 3, out_features: int = 2) -> nn.Module:
 
 
 class PerFinger(nn.Module):
-    """Apply one model to every finger's crop: (B, F, C, S, S) -> (B, 2F).
+    """Apply one model to every finger's crop: (B, F, C, S, S) [+ side (B, F, K)] -> (B, 2F).
 
     Args:
-        net: A model mapping (N, C, S, S) to (N, 2).
+        net: A model mapping (N, C, S, S) to (N, 2), or to (N, embed) when side features come.
         n_fingers: F.
+        side_features: K, numbers per finger beside the pixels (0: none).
+        embed: Width of `net`'s output when K > 0.
     """
 
-    def __init__(self, net: nn.Module, n_fingers: int):
+    def __init__(self, net: nn.Module, n_fingers: int, side_features: int = 0,
+                 embed: int = 32):
         super().__init__()
         self.net = net
-        self.n_fingers = n_fingers
+        self.n_fingers, self.side_features = n_fingers, side_features
+        self.fuse = None
+        if side_features:
+            self.fuse = nn.Sequential(nn.Linear(embed + side_features, 64), nn.ReLU(inplace=True),
+                                      nn.Linear(64, 2))
         for name in ("input_size", "in_channels", "fc_in", "fc_width", "name"):
             if hasattr(net, name):
                 setattr(self, name, getattr(net, name))
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """Run the shared model on each finger's crop."""
+    def forward(self, x: torch.Tensor, side: torch.Tensor | None = None) -> torch.Tensor:
+        """Run the shared model on each finger's crop (and its side features)."""
         b, f = x.shape[:2]
-        return self.net(x.reshape(b * f, *x.shape[2:])).reshape(b, 2 * f)
+        out = self.net(x.reshape(b * f, *x.shape[2:]))
+        if self.fuse is not None:
+            out = self.fuse(torch.cat([out, side.reshape(b * f, -1)], dim=1))
+        return out.reshape(b, 2 * f)
+
+
+def apply_model(model: nn.Module, batch: dict, device) -> torch.Tensor:
+    """The model's output on a batch of `SampleSet.batch`, side features passed if it takes
+    them."""
+    x = batch["image"].to(device)
+    if getattr(model, "side_features", 0):
+        return model(x, batch["side"].to(device))
+    return model(x)

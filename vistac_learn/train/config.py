@@ -160,7 +160,9 @@ def build_model(cfg: TrainCfg) -> torch.nn.Module:
     torch.manual_seed(cfg.seed)
     try:
         if view.per_finger:
-            return PerFinger(create_model(cfg.model, view.channels, 2), n_fingers)
+            embed = 32 if view.side_features else 2
+            return PerFinger(create_model(cfg.model, view.channels, embed), n_fingers,
+                             view.side_features, embed)
         return create_model(cfg.model, in_channels=view.channels, out_features=2 * n_fingers)
     except (KeyError, ValueError) as exc:
         raise UserError(f"--model {cfg.model!r}: {exc}") from exc

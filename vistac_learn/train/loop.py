@@ -42,6 +42,7 @@ from vistac.errors import UserError
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import fingers_of
 from vistac_learn.metrics.scoring import predict, score_predictions
+from vistac_learn.models.tipnet import apply_model
 from vistac_learn.train.checkpoints import (
     atomic_save,
     init_from_run,
@@ -227,9 +228,9 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
             bar = tqdm(total=n_batches, initial=first, desc=f"epoch {epoch + 1}/{cfg.epochs}",
                        disable=not progress, leave=False, unit="batch")
             for b, batch in train_ds.batches(perm, cfg.batch_size, epoch, first):
-                x, y = batch["image"].to(device), batch["target"].to(device)
+                y = batch["target"].to(device)
                 opt.zero_grad(set_to_none=True)
-                loss = masked_mse(model(x), y, batch["found"].to(device))
+                loss = masked_mse(apply_model(model, batch, device), y, batch["found"].to(device))
                 if not torch.isfinite(loss):
                     raise UserError(
                         f"epoch {epoch + 1}, batch {b + 1}: the training loss is "
