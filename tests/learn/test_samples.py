@@ -149,3 +149,14 @@ def test_side_features_say_where_the_other_finger_is(ds):
         if m.aug(i, 0).mirror:
             expect[:, [0, 3]] *= -1
         np.testing.assert_allclose(side[i], expect, atol=1e-6)
+
+
+def test_training_subsets_are_nested_and_seeded():
+    from vistac_learn.train.config import subset_rows
+
+    rows = np.arange(10, 110)
+    small, big = subset_rows(rows, 0.1, 3), subset_rows(rows, 0.33, 3)
+    assert len(small) == 10 and len(big) == 33 and set(small) <= set(big)
+    assert (np.diff(big) > 0).all() and set(big) <= set(rows)
+    assert not np.array_equal(small, subset_rows(rows, 0.1, 4))
+    np.testing.assert_array_equal(subset_rows(rows, 1.0, 3), rows)

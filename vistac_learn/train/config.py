@@ -18,6 +18,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 
 from vistac.config import Config, param
@@ -81,6 +82,9 @@ class TrainCfg(Config):
                         "angle_to_mean_median_deg or error_median_pct, lower is better; "
                         "in_cone_pct, higher is better), averaged over the fingers")
     train_split: str = param("train", choices=("train", "val", "test"), help="split to train on")
+    train_fraction: float = param(1.0, gt=0, le=1, help="train on this fraction of the training "
+                                  "configurations (a seeded subset; smaller fractions are "
+                                  "subsets of larger ones)")
     val_split: str = param("val", choices=("train", "val", "test"), help="split to select on")
     init: str | None = param(None, help="run folder whose best weights start this run "
                              "(fine-tuning); a head of another shape is re-initialised")
@@ -173,10 +177,23 @@ def input_size(cfg: TrainCfg, model: torch.nn.Module) -> int:
     return int(cfg.size or getattr(model, "input_size", 227))
 
 
+def subset_rows(rows: np.ndarray, fraction: float, seed: int) -> np.ndarray:
+    """The first ceil(fraction * n) rows of a permutation drawn from `seed` (nested in the
+    fraction: a smaller fraction is a subset of a larger one), in ascending order."""
+    if fraction >= 1:
+        return rows
+    keep = max(1, int(np.ceil(fraction * len(rows))))
+    return np.sort(rows[np.random.default_rng([seed, 7]).permutation(len(rows))[:keep]])
+
+
 def build_samples(cfg: TrainCfg, tables: DatasetTables, split: str, size: int,
                   tips: FingertipTable | None, train: bool = False) -> SampleSet:
-    """The samples of one split: training ones with the run's augmentation, others without."""
+    """The samples of one split: training ones with the run's augmentation (and only its
+    `train_fraction`), others whole and without augmentation."""
     view = build_view(cfg)
-    return SampleSet(tables, tables.rows(split), view, size, fingers_of(cfg.finger),
+    rows = tables.rows(split)
+    if train:
+        rows = subset_rows(rows, cfg.train_fraction, cfg.seed)
+    return SampleSet(tables, rows, view, size, fingers_of(cfg.finger),
                      cfg.target if train else "mean", cfg.seed, cfg.rotation_cfg(),
                      cfg.augment_cfg() if train else None, tips)

@@ -1,0 +1,118 @@
+"""Issue 8's acceptance run: the default `vistac train` against the baselines and the study's nets.
+
+Dataset: `vistac generate --n 3000 --noise 0.05 --split-by object` (held-out objects in test).
+Entries, all scored on the test split (both fingers where the entry predicts both):
+
+- ``default``: `vistac train --data D --out R --finger both` with nothing else (the default
+  protocol: tip view, tipnet); its wall time includes locating the fingertips;
+- the geometric baseline (non-learned) and the constant mean label;
+- the study's nets under the study's protocol (`--protocol study`, edge-index, index finger) by
+  name; on a CPU the study's 20 fixed rotations x 20 epochs of a 0.66 GMAC net take hours, so
+  by default they see ``--study-rotations`` random angles per configuration and epoch and are
+  scored on the study's 20 fixed test rotations;
+- optionally study nets on the tip view with the default recipe (``--tip-models``).
+
+Writes ``learn_default.md`` / ``.json`` and ``learn_default.png`` into ``--out``. Rerunning
+with the same ``--out`` reuses the dataset and finished runs.
+
+Usage:
+    python benchmarks/learn_default.py --out bench/default
+    python benchmarks/learn_default.py --out bench/default --study-models smallconv
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import matplotlib  # noqa: E402
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from learnbench import (  # noqa: E402
+    baseline_entry,
+    ensure_dataset,
+    machine,
+    mean_entry,
+    run_entry,
+    save,
+    slug,
+    table,
+)
+
+
+def _default_entry(data: Path, out: Path, progress: bool) -> dict:
+    """The default run, with the wall time of its (uninterrupted) training."""
+    label = "default (tipnet, tip view)"
+    wall = out / "runs" / slug(label) / "wall_s.json"
+    fresh = not (out / "runs" / slug(label) / "metrics.csv").exists()
+    t0 = time.perf_counter()
+    entry = run_entry(data, out, label, "default", progress, finger="both")
+    if fresh:
+        wall.write_text(json.dumps({"wall_s": time.perf_counter() - t0}))
+    entry["wall_s"] = json.loads(wall.read_text())["wall_s"] if wall.exists() else None
+    return entry
+
+
+def plot(entries: list[dict], path: Path) -> None:
+    """Median angle to the cone mean per entry and finger (bars)."""
+    fig, ax = plt.subplots(figsize=(8, 0.45 * len(entries) + 1.5))
+    labels = [e["label"] for e in entries][::-1]
+    for k, f in enumerate(("index", "thumb")):
+        vals = [e["metrics"][f]["angle_to_mean_median_deg"] if f in e["metrics"] else 0
+                for e in entries][::-1]
+        ax.barh([i + 0.4 * k for i in range(len(labels))], vals, height=0.4, label=f)
+    ax.set_yticks([i + 0.2 for i in range(len(labels))], labels)
+    ax.set_xlabel("median angle to the cone mean on held-out objects (deg)")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command-line entry."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--out", required=True, type=Path)
+    p.add_argument("--data", type=Path, help="dataset (default: generated into <out>/data)")
+    p.add_argument("--n", type=int, default=3000)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--study-models", nargs="*", default=["schoeconv100-v3-fc160", "smallconv"])
+    p.add_argument("--study-rotations", type=int, default=1,
+                   help="random angles per configuration and epoch for the study's protocol "
+                   "(0: the study's 20 fixed angles)")
+    p.add_argument("--tip-models", nargs="*", default=[],
+                   help="study nets trained on the tip view with the default recipe")
+    p.add_argument("--quiet", action="store_true")
+    args = p.parse_args(argv)
+    data = args.data or ensure_dataset(args.out / "data", "--n", str(args.n), "--noise", "0.05",
+                                       "--split-by", "object", "--seed", str(args.seed))
+    progress = not args.quiet
+    entries = [_default_entry(data, args.out, progress), baseline_entry(data, args.out),
+               mean_entry(data)]
+    rot = ({"rotations": "random", "n_rotations": args.study_rotations}
+           if args.study_rotations else {})
+    for name in args.study_models:
+        entries.append(run_entry(data, args.out, f"{name}, edge-index, study protocol",
+                                 "study", progress, model=name, **rot))
+    for name in args.tip_models:
+        entries.append(run_entry(data, args.out, f"{name}, tip view, default recipe",
+                                 "default", progress, model=name))
+    extra = (("MACs/sample", "macs"), ("train s", "train_s"), ("wall s", "wall_s"),
+             ("epochs", "epochs"), ("best", "best_epoch"))
+    md = table(entries, extra)
+    plot(entries, args.out / "learn_default.png")
+    save(args.out, "learn_default", {"dataset": str(data), "machine": machine(),
+                                     "settings": {k: str(v) for k, v in vars(args).items()},
+                                     "entries": entries}, md)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

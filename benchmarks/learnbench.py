@@ -1,0 +1,147 @@
+"""Shared pieces of the learning benchmarks: datasets, resumable train-and-score entries, tables.
+
+Every entry is a training run in ``<out>/runs/<slug>`` made by `vistac_learn.train.loop.train`
+and scored on the test split by `evaluate_run`; a rerun skips finished runs and resumes
+unfinished ones, so a benchmark killed half-way continues where it stopped.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import platform
+import re
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from vistac.cli import main as vistac_main
+from vistac.dataset import FINGERS, open_dataset
+from vistac_learn.data.samples import RotationCfg
+from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
+from vistac_learn.metrics import cone_metrics
+from vistac_learn.train.config import protocol_cfg
+from vistac_learn.train.loop import train
+
+COLUMNS = (("° to mean", "angle_to_mean_median_deg"), ("% in cone", "in_cone_pct"),
+           ("% correct y", "correct_y_pct"), ("median err %", "error_median_pct"),
+           ("median inacc. mean %", "inacc_mean_median_pct"))
+
+
+def ensure_dataset(path: Path, *generate_args: str) -> Path:
+    """`vistac generate --out path ...` unless a complete dataset is there (resumed if partial)."""
+    man = path / "manifest.json"
+    if man.exists() and json.loads(man.read_text()).get("complete"):
+        return path
+    argv = ["generate", "--out", str(path), "--no-progress", *generate_args]
+    if (path / ".partial").exists():
+        argv.append("--resume")
+    t0 = time.perf_counter()
+    if vistac_main(argv) != 0:
+        raise SystemExit(f"generating {path} failed")
+    print(f"generated {path} in {time.perf_counter() - t0:.0f} s", flush=True)
+    return path
+
+
+def slug(label: str) -> str:
+    """A folder name for an entry's label."""
+    return re.sub(r"[^a-z0-9]+", "-", label.lower()).strip("-")
+
+
+def _epoch_rows(run: Path) -> list[dict]:
+    path = run / "metrics.csv"
+    if not path.exists():
+        return []
+    with path.open() as fh:
+        return list(csv.DictReader(fh))
+
+
+def run_entry(data: Path, out: Path, label: str, protocol: str = "default",
+              progress: bool = True, **changes) -> dict:
+    """Train (or finish training) one run and score its best epoch on the test split."""
+    run = out / "runs" / slug(label)
+    cfg = protocol_cfg(protocol, str(data), str(run), device="cpu", **changes)
+    if len(_epoch_rows(run)) < cfg.epochs:
+        print(f"== {label}: training", flush=True)
+        train(cfg, resume=(run / "checkpoints" / "last.pt").exists(), progress=progress)
+    scored = run / "eval" / "test" / "metrics.json"
+    best = run / "checkpoints" / "best.pt"
+    if scored.exists() and scored.stat().st_mtime > best.stat().st_mtime:
+        res = json.loads(scored.read_text())
+    else:
+        res = evaluate_run(run, split="test", make_plots=False, device="cpu")
+    rows = _epoch_rows(run)
+    meta = json.loads((run / "config.json").read_text())
+    return {"label": label, "kind": "model", "protocol": protocol, "model": cfg.model,
+            "variant": cfg.variant, "fingers": res["fingers"], "metrics": res["metrics"],
+            "macs": meta["model"]["macs_per_sample"], "params": meta["model"]["params"],
+            "epochs": len(rows), "best_epoch": res["epoch"],
+            "train_s": float(sum(float(r["train_s"]) for r in rows)),
+            "train_s_per_epoch": float(np.mean([float(r["train_s"]) for r in rows])),
+            "images_per_s": res["images_per_s"],
+            "n_train": meta["dataset"]["n_train_configs"], "run": str(run)}
+
+
+def baseline_entry(data: Path, out: Path, fingers=FINGERS) -> dict:
+    """The geometric baseline on the unrotated test images."""
+    finger = "both" if len(fingers) == 2 else fingers[0]
+    res = evaluate_baseline(data, out / "baseline", split="test", finger=finger,
+                            rotations=RotationCfg("none"), make_plots=False)
+    return {"label": "geometric baseline (non-learned)", "kind": "baseline",
+            "fingers": res["fingers"], "metrics": res["metrics"], "macs": None,
+            "train_s": 0.0, "images_per_s": res["images_per_s"], "failures": res["failures"]}
+
+
+def mean_entry(data: Path, fingers=FINGERS) -> dict:
+    """Predicting the training split's mean label for every test configuration."""
+    t = open_dataset(data)
+    rows = t.rows("test")
+    metrics = {}
+    for f in fingers:
+        mean = t.mean_label(f)[t.rows("train")].mean(axis=0)
+        res = cone_metrics(np.tile(mean, (len(rows), 1)), np.arange(len(rows)),
+                           [t.cones[f][r] for r in rows])
+        metrics[f] = {k: float(v) for k, v in res.items() if np.isscalar(v)}
+    return {"label": "mean label (constant)", "kind": "constant", "fingers": list(fingers),
+            "metrics": metrics, "macs": None, "train_s": 0.0}
+
+
+def fmt(v) -> str:
+    """A table cell."""
+    if v is None or (isinstance(v, float) and not np.isfinite(v)):
+        return "-"
+    if isinstance(v, int | np.integer):
+        return str(v)
+    return f"{v:.3g}" if abs(v) < 1000 else f"{v:.0f}"
+
+
+def table(entries: list[dict], extra: tuple[tuple[str, str], ...] = ()) -> str:
+    """Markdown: one row per entry and finger; the study's and the angular columns, then
+    `extra` (header, entry key) columns."""
+    head = ["model / setting", "finger", *(h for h, _ in COLUMNS), *(h for h, _ in extra)]
+    lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+    for e in entries:
+        for f in e["fingers"]:
+            m = e["metrics"][f]
+            cells = [e["label"], f, *(fmt(m.get(k)) for _, k in COLUMNS),
+                     *(fmt(e.get(k)) for _, k in extra)]
+            lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def machine() -> dict:
+    """Where the numbers were measured."""
+    return {"platform": platform.platform(), "cpu_count": os.cpu_count(),
+            "torch_threads": torch.get_num_threads(), "torch": torch.__version__,
+            "python": platform.python_version()}
+
+
+def save(out: Path, name: str, result: dict, markdown: str) -> None:
+    """Write ``<name>.json`` and ``<name>.md`` into `out` and print the table."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"{name}.json").write_text(json.dumps(result, indent=2))
+    (out / f"{name}.md").write_text(markdown + "\n")
+    print(markdown, flush=True)
