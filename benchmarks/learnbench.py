@@ -127,7 +127,8 @@ def table(entries: list[dict], extra: tuple[tuple[str, str], ...] = ()) -> str:
         for f in e["fingers"]:
             m = e["metrics"][f]
             cells = [e["label"], f, *(fmt(m.get(k)) for _, k in COLUMNS),
-                     *(fmt(e.get(k)) for _, k in extra)]
+                     *(f"{e[k] / 1e6:.1f} M" if k == "macs" and e.get(k) else fmt(e.get(k))
+                       for _, k in extra)]
             lines.append("| " + " | ".join(cells) + " |")
     return "\n".join(lines)
 

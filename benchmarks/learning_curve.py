@@ -1,0 +1,118 @@
+"""Learning curve on the headline dataset: accuracy against training configurations, with time.
+
+Dataset: `vistac generate --n 20000 --noise 0.05 --split-by object` (or ``--data``). For each
+training-set size (nested seeded subsets of the train split, `--train-fraction`) it trains
+
+- the default recipe (tipnet on the tip view, both fingers), and
+- one of the study's nets under the study's protocol (default SmallConv on edge-index, index
+  finger; ``--study-rotations`` random angles per configuration and epoch),
+
+and scores each on the whole test split (held-out objects). Memory stays flat as the training
+set grows: images are decoded per batch and nothing per rotation is stored; the peak resident
+memory of each run is recorded.
+
+Writes ``learning_curve.md`` / ``.json`` / ``.png`` into ``--out``; reruns resume.
+
+Usage:
+    python benchmarks/learning_curve.py --out bench/curve
+    python benchmarks/learning_curve.py --out bench/curve --sizes 300 1000 3000 --data D
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import matplotlib  # noqa: E402
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+from learnbench import ensure_dataset, fmt, machine, run_entry, save  # noqa: E402
+
+from vistac.dataset import open_dataset  # noqa: E402
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    """Accuracy and training time against training configurations (log x)."""
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
+    for name in dict.fromkeys(r["recipe"] for r in rows):
+        rs = sorted((r for r in rows if r["recipe"] == name), key=lambda r: r["n_train"])
+        x = [r["n_train"] for r in rs]
+        a.plot(x, [r["index_deg"] for r in rs], "o-", label=f"{name} (index)")
+        if rs[0]["thumb_deg"] is not None:
+            a.plot(x, [r["thumb_deg"] for r in rs], "s--", label=f"{name} (thumb)")
+        b.plot(x, [r["train_s"] / 60 for r in rs], "o-", label=name)
+    for ax in (a, b):
+        ax.set_xscale("log")
+        ax.set_xlabel("training configurations")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    a.set_yscale("log")
+    a.set_ylabel("median angle to cone mean, test (deg)")
+    b.set_ylabel("training time (min, 2 CPU cores)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command-line entry."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--out", required=True, type=Path)
+    p.add_argument("--data", type=Path, help="dataset (default: generated into <out>/data)")
+    p.add_argument("--n", type=int, default=20000, help="configurations to generate")
+    p.add_argument("--sizes", type=int, nargs="+", default=[300, 1000, 3000, 10000, 0],
+                   help="training configurations per point (0: the whole train split)")
+    p.add_argument("--study-model", default="smallconv")
+    p.add_argument("--study-rotations", type=int, default=1)
+    p.add_argument("--quiet", action="store_true")
+    args = p.parse_args(argv)
+    data = args.data or ensure_dataset(args.out / "data", "--n", str(args.n), "--noise", "0.05",
+                                       "--split-by", "object")
+    n_train = len(open_dataset(data).rows("train"))
+    rows = []
+    for size in args.sizes:
+        n = n_train if size <= 0 or size >= n_train else size
+        frac = n / n_train
+        recipes = [("default (tipnet, tip)", "default", {"finger": "both"}),
+                   (f"{args.study_model} (study protocol)", "study",
+                    {"model": args.study_model, "rotations": "random",
+                     "n_rotations": args.study_rotations})]
+        for name, protocol, kw in recipes:
+            e = run_entry(data, args.out, f"{name} n{n}", protocol, not args.quiet,
+                          train_fraction=frac, **kw)
+            m = e["metrics"]
+            rows.append({
+                "recipe": name, "n_train": e["n_train"] if frac == 1 else n,
+                "index_deg": m["index"]["angle_to_mean_median_deg"],
+                "thumb_deg": m["thumb"]["angle_to_mean_median_deg"] if "thumb" in m else None,
+                "index_in_cone": m["index"]["in_cone_pct"],
+                "index_correct_y": m["index"]["correct_y_pct"],
+                "train_s": e["train_s"], "epochs": e["epochs"], "best_epoch": e["best_epoch"],
+                "macs": e["macs"],
+                "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024})
+    peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    head = ["recipe", "train configs", "index °", "thumb °", "index % in cone",
+            "index % correct y", "train min", "best epoch", "peak RSS so far (MiB)"]
+    lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+    for r in rows:
+        lines.append("| " + " | ".join([
+            r["recipe"], str(r["n_train"]), fmt(r["index_deg"]), fmt(r["thumb_deg"]),
+            fmt(r["index_in_cone"]), fmt(r["index_correct_y"]), fmt(r["train_s"] / 60),
+            f"{r['best_epoch']}/{r['epochs']}", f"{r['peak_rss_mib']:.0f}"]) + " |")
+    md = "\n".join(lines) + (f"\n\nPeak resident memory of the whole benchmark: {peak_mib:.0f} "
+                             "MiB (runs in size order: flat means memory does not grow with the "
+                             "training set).")
+    plot(rows, args.out / "learning_curve.png")
+    save(args.out, "learning_curve", {"dataset": str(data), "machine": machine(), "rows": rows,
+                                      "peak_rss_mib": peak_mib}, md)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

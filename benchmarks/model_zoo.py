@@ -1,0 +1,161 @@
+"""Accuracy against cost for the model zoo, on one split: MACs, train time, inference, accuracy.
+
+Every model is trained with the default recipe on the tip view (both fingers, one shared net,
+crops rendered at the model's own input size: 48 px for tipnet, 100 or 227 px for the study's
+nets) on the same dataset and scored on its test split. Before training, a few training steps
+are timed; a model whose estimated training time exceeds ``--budget-min`` is not trained (its
+MACs and speed are still reported, its accuracy is "-"). Inference is timed on batches of 64
+samples (both fingers' crops) with torch's default threads.
+
+Writes ``model_zoo.md`` / ``.json`` and ``model_zoo.png`` (Pareto fronts: accuracy against MACs
+and against training time) into ``--out``; reruns resume.
+
+Usage:
+    python benchmarks/model_zoo.py --data bench/default/data --out bench/zoo
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import matplotlib  # noqa: E402
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+from learnbench import ensure_dataset, fmt, machine, run_entry, save, slug  # noqa: E402
+
+from vistac.dataset import open_dataset  # noqa: E402
+from vistac_learn.models import count_macs  # noqa: E402
+from vistac_learn.train.config import build_model, input_size, protocol_cfg  # noqa: E402
+
+MODELS = ("tipnet", "smallconv", "randomconv", "mobilenetv2-tiny", "resnet-tiny",
+          "schoeconv100-v1", "schoeconv100-v3-fc160", "alexnet-1x1", "schoeconv227-v1")
+
+
+def _timings(name: str, epochs: int, batch: int, n_train: int) -> dict:
+    """MACs per sample, inference ms per sample, and an estimate of the training time."""
+    cfg = protocol_cfg("default", "", "", model=name)
+    model = build_model(cfg)
+    s = input_size(cfg, model)
+    macs = model.n_fingers * count_macs(model.net, (3, s, s))
+    x = torch.rand(batch, 2, 3, s, s)
+    side = torch.rand(batch, 2, model.side_features)
+    y = torch.rand(batch, 4)
+    opt = torch.optim.AdamW(model.parameters(), 1e-3)
+    steps = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        opt.zero_grad()
+        ((model(x, side) - y) ** 2).mean().backward()
+        opt.step()
+        steps.append(time.perf_counter() - t0)
+    model.eval()
+    with torch.no_grad():
+        xs = torch.rand(64, 2, 3, s, s)
+        sides = torch.rand(64, 2, model.side_features)
+        model(xs, sides)
+        t0 = time.perf_counter()
+        for _ in range(3):
+            model(xs, sides)
+        infer = (time.perf_counter() - t0) / (3 * 64)
+    est = float(np.median(steps[1:])) * np.ceil(n_train / batch) * epochs
+    return {"macs": int(macs), "input_size": s, "infer_ms": 1000 * infer,
+            "est_train_min": est / 60, "params": sum(p.numel() for p in model.parameters())}
+
+
+def pareto(xs: list[float], ys: list[float]) -> list[int]:
+    """Indices of the points not beaten on both x and y (lower is better for both)."""
+    idx = sorted(range(len(xs)), key=lambda i: (xs[i], ys[i]))
+    front, best = [], np.inf
+    for i in idx:
+        if ys[i] < best:
+            front.append(i)
+            best = ys[i]
+    return front
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    """Accuracy against MACs and against training time, Pareto fronts drawn."""
+    done = [r for r in rows if r.get("deg") is not None]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for ax, key, label in ((axes[0], "macs", "MACs per sample (both fingers)"),
+                           (axes[1], "train_s_per_epoch", "training s per epoch (2 CPU cores)")):
+        xs, ys = [r[key] for r in done], [r["deg"] for r in done]
+        ax.scatter(xs, ys)
+        for r in done:
+            ax.annotate(r["model"], (r[key], r["deg"]), fontsize=7, xytext=(3, 3),
+                        textcoords="offset points")
+        front = pareto(xs, ys)
+        ax.plot([xs[i] for i in front], [ys[i] for i in front], "r--", lw=1, label="Pareto front")
+        ax.set_xscale("log")
+        ax.set_xlabel(label)
+        ax.set_ylabel("median angle to cone mean, test (deg, mean of fingers)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Command-line entry."""
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--out", required=True, type=Path)
+    p.add_argument("--data", type=Path, help="dataset (default: generated into <out>/data)")
+    p.add_argument("--n", type=int, default=3000)
+    p.add_argument("--models", nargs="+", default=list(MODELS))
+    p.add_argument("--epochs", type=int, help="epochs per model (default: the recipe's)")
+    p.add_argument("--budget-min", type=float, default=30.0,
+                   help="train only models whose estimated training time is below this")
+    p.add_argument("--quiet", action="store_true")
+    args = p.parse_args(argv)
+    data = args.data or ensure_dataset(args.out / "data", "--n", str(args.n), "--noise", "0.05",
+                                       "--split-by", "object")
+    base = protocol_cfg("default", str(data), "")
+    epochs = args.epochs or base.epochs
+    n_train = len(open_dataset(data).rows("train"))
+    rows = []
+    for name in args.models:
+        r = {"model": name, **_timings(name, epochs, base.batch_size, n_train)}
+        label = f"{name} tip view e{epochs}"
+        trained = (args.out / "runs" / slug(label) / "metrics.csv").exists()
+        if r["est_train_min"] <= args.budget_min or trained:
+            e = run_entry(data, args.out, label, "default", not args.quiet, model=name,
+                          epochs=epochs)
+            m = e["metrics"]
+            r |= {"deg": float(np.mean([m[f]["angle_to_mean_median_deg"] for f in m])),
+                  "index_deg": m["index"]["angle_to_mean_median_deg"],
+                  "thumb_deg": m["thumb"]["angle_to_mean_median_deg"],
+                  "in_cone": float(np.mean([m[f]["in_cone_pct"] for f in m])),
+                  "correct_y": float(np.mean([m[f]["correct_y_pct"] for f in m])),
+                  "train_s_per_epoch": e["train_s_per_epoch"], "train_min": e["train_s"] / 60}
+        else:
+            print(f"== {name}: estimated {r['est_train_min']:.0f} min > budget, not trained",
+                  flush=True)
+        rows.append(r)
+    head = ["model", "input px", "params", "MACs/sample", "infer ms/sample", "train s/epoch",
+            "train min", "° index", "° thumb", "% in cone", "% correct y"]
+    lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+    for r in rows:
+        lines.append("| " + " | ".join([
+            r["model"], str(r["input_size"]), fmt(r["params"]), f"{r['macs'] / 1e6:.1f} M",
+            fmt(r["infer_ms"]), fmt(r.get("train_s_per_epoch")),
+            fmt(r.get("train_min", r["est_train_min"])) + ("" if "deg" in r else " (est.)"),
+            fmt(r.get("index_deg")), fmt(r.get("thumb_deg")), fmt(r.get("in_cone")),
+            fmt(r.get("correct_y"))]) + " |")
+    plot(rows, args.out / "model_zoo.png")
+    save(args.out, "model_zoo", {"dataset": str(data), "machine": machine(), "epochs": epochs,
+                                 "rows": rows}, "\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
