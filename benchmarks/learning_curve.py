@@ -34,6 +34,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from learnbench import ensure_dataset, fmt, machine, run_entry, save  # noqa: E402
 
 from vistac.dataset import open_dataset  # noqa: E402
+from vistac_learn.train.config import protocol_cfg  # noqa: E402
 
 
 def plot(rows: list[dict], path: Path) -> None:
@@ -70,6 +71,11 @@ def main(argv: list[str] | None = None) -> int:
                    help="training configurations per point (0: the whole train split)")
     p.add_argument("--study-model", default="smallconv")
     p.add_argument("--study-rotations", type=int, default=1)
+    p.add_argument("--sample-budget", type=int, default=90000,
+                   help="training samples seen per run at most: a run on n configurations "
+                   "trains min(protocol epochs, max(3, budget / n)) epochs, so the large "
+                   "sizes cost about what the default run on 3000 configurations costs "
+                   "(0: the protocol's epochs everywhere)")
     p.add_argument("--quiet", action="store_true")
     args = p.parse_args(argv)
     data = args.data or ensure_dataset(args.out / "data", "--n", str(args.n), "--noise", "0.05",
@@ -84,8 +90,11 @@ def main(argv: list[str] | None = None) -> int:
                     {"model": args.study_model, "rotations": "random",
                      "n_rotations": args.study_rotations})]
         for name, protocol, kw in recipes:
+            epochs = protocol_cfg(protocol, "", "").epochs
+            if args.sample_budget:
+                epochs = min(epochs, max(3, round(args.sample_budget / n)))
             e = run_entry(data, args.out, f"{name} n{n}", protocol, not args.quiet,
-                          train_fraction=frac, **kw)
+                          train_fraction=frac, epochs=epochs, **kw)
             m = e["metrics"]
             rows.append({
                 "recipe": name, "n_train": e["n_train"] if frac == 1 else n,
