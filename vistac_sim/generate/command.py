@@ -5,7 +5,15 @@ from __future__ import annotations
 import argparse
 import json
 
-from vistac.config import HelpFormatter, add_options, apply, flag_labels, option_values
+from vistac.config import (
+    HelpFormatter,
+    add_options,
+    apply,
+    flag_labels,
+    from_options,
+    option_values,
+)
+from vistac.engine import ENGINE_OPTIONS, EngineCfg
 from vistac_sim.effects.presets import PRESETS, resolve
 from vistac_sim.generate.config import GenerateCfg
 
@@ -43,7 +51,9 @@ def add_command(sub: argparse._SubParsersAction) -> None:
                    help="also write recordings/NNNNNN.csv per configuration in the RH8D/FTS-3 "
                    "layout (50 Hz press/hold/release session, integer mN)")
     add_options(p, GenerateCfg, DRAW_OPTIONS)
-    p.add_argument("--workers", type=int, default=0, help="processes (0: all cores)")
+    p.add_argument("--workers", type=int, default=0, help="processes (0: all cores); with "
+                   "--engine ray and no cluster: the CPUs of the local Ray instance")
+    add_options(p, EngineCfg, ENGINE_OPTIONS)
     add_options(p, GenerateCfg, SCENE_OPTIONS)
     p.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -67,8 +77,9 @@ def _generate(args: argparse.Namespace) -> int:
     from vistac_sim.generate.run import generate
 
     cfg = generate_cfg_from_args(args)
+    engine = from_options(EngineCfg, args, ENGINE_OPTIONS)
     manifest = generate(cfg, args.out, workers=args.workers, resume=args.resume,
-                        progress=not args.no_progress)
+                        progress=not args.no_progress, engine=engine)
     summary = {k: manifest[k] for k in ("counts", "redraws", "wall_time_s")}
     print(f"wrote {args.out}: " + json.dumps(summary))
     return 0
