@@ -8,8 +8,16 @@ import os
 import sys
 from pathlib import Path
 
-from vistac.config import HelpFormatter, add_options, apply, flag_labels, option_values
+from vistac.config import (
+    HelpFormatter,
+    add_options,
+    apply,
+    flag_labels,
+    from_options,
+    option_values,
+)
 from vistac.dataset.files import check_out_dir
+from vistac.engine import ENGINE_OPTIONS, EngineCfg
 from vistac.errors import UserError
 from vistac_sim.effects.presets import PRESETS, resolve
 from vistac_sim.generate.config import GenerateCfg
@@ -49,7 +57,9 @@ def add_command(sub: argparse._SubParsersAction) -> None:
                    "layout (50 Hz press/hold/release session, integer mN)")
     add_options(p, GenerateCfg, DRAW_OPTIONS)
     p.add_argument("--workers", type=int, default=0,
-                   help="processes (0: all cores; at most the cores and the chunks)")
+                   help="processes (0: all cores; at most the cores and the chunks); with "
+                   "--engine ray and no cluster: the CPUs of the local Ray instance")
+    add_options(p, EngineCfg, ENGINE_OPTIONS)
     add_options(p, GenerateCfg, SCENE_OPTIONS)
     p.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -91,9 +101,10 @@ def _generate(args: argparse.Namespace) -> int:
 
     cfg = generate_cfg_from_args(args)
     workers = check_workers(args.workers)
+    engine = from_options(EngineCfg, args, ENGINE_OPTIONS)
     check_out_dir(args.out)
     manifest = generate(cfg, args.out, workers=workers, resume=args.resume,
-                        progress=not args.no_progress)
+                        progress=not args.no_progress, engine=engine)
     summary = {k: manifest[k] for k in ("counts", "redraws", "wall_time_s")}
     print(f"wrote {args.out}: " + json.dumps(summary))
     return 0

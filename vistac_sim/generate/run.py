@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,10 +19,12 @@ from tqdm import tqdm
 
 from vistac.dataset import files
 from vistac.dataset.schema import IMAGES
+from vistac.engine import EngineCfg
 from vistac_sim.effects import build_pipeline
+from vistac_sim.effects.registry import Pipeline
 from vistac_sim.generate import shards
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.configuration import make_configuration, object_index
+from vistac_sim.generate.configuration import Configuration, make_configuration, object_index
 from vistac_sim.generate.scenes import SceneCache
 from vistac_sim.objects.decomposition import default_cache_dir
 from vistac_sim.objects.library import ObjectSpec, mesh_library, procedural_library
@@ -56,6 +59,28 @@ def object_specs(cfg: GenerateCfg, seed: int) -> tuple[list[ObjectSpec], list[di
     return procedural_library(cfg.objects, seed), []
 
 
+# ------------------------------------------------------------------------- make, then commit
+def make_chunk(chunk: Chunk, cfg: GenerateCfg, scenes: SceneCache,
+               pipeline: Pipeline) -> list[Configuration]:
+    """Every configuration of a chunk, in memory: pure and deterministic given `cfg.seed`."""
+    return [make_configuration(cid, cfg.seed, scenes, cfg, pipeline) for cid in chunk.config_ids]
+
+
+def commit_chunk(out: Path, chunk_index: int, made: list[Configuration]) -> int:
+    """Write a made chunk's images (and recordings), then commit its shard; returns its size."""
+    if any(c.recording is not None for c in made):
+        (out / "recordings").mkdir(exist_ok=True)
+    for c in made:
+        files.atomic_write_bytes(out / IMAGES / c.row["image"], c.png)
+        if c.recording is not None:
+            cid = c.row["config_id"]
+            files.atomic_write_bytes(out / "recordings" / recording_name(cid), c.recording)
+    cpath, ppath = shards.shard_paths(out, chunk_index)
+    files.write_table(ppath, [p for c in made for p in c.presses])
+    files.write_table(cpath, [c.row for c in made])  # written last: commits the chunk
+    return len(made)
+
+
 # ------------------------------------------------------------------------------ worker process
 _WORKER: dict = {}
 
@@ -66,41 +91,44 @@ def _init_worker(cfg: GenerateCfg, specs: list[ObjectSpec], out: str) -> None:
 
 
 def _run_chunk(chunk: Chunk) -> int:
-    """Make every configuration of a chunk, write its images, then commit its shard."""
-    cfg, out = _WORKER["cfg"], _WORKER["out"]
-    rows, presses = [], []
-    if cfg.recording.write:
-        (out / "recordings").mkdir(exist_ok=True)
-    for cid in chunk.config_ids:
-        c = make_configuration(cid, cfg.seed, _WORKER["scenes"], cfg, _WORKER["pipeline"])
-        files.atomic_write_bytes(out / IMAGES / c.row["image"], c.png)
-        if c.recording is not None:
-            files.atomic_write_bytes(out / "recordings" / recording_name(cid), c.recording)
-        rows.append(c.row)
-        presses += c.presses
-    cpath, ppath = shards.shard_paths(out, chunk.index)
-    files.write_table(ppath, presses)
-    files.write_table(cpath, rows)  # written last: commits the chunk
-    return len(chunk.config_ids)
+    """Make a chunk in this worker and commit it to the (local) output folder."""
+    made = make_chunk(chunk, _WORKER["cfg"], _WORKER["scenes"], _WORKER["pipeline"])
+    return commit_chunk(_WORKER["out"], chunk.index, made)
+
+
+def _run_local(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[Chunk],
+               workers: int) -> Iterator[int]:
+    """Make and commit the `todo` chunks in this process or a pool; yields chunk sizes."""
+    if workers == 1 or len(todo) <= 1:
+        _init_worker(cfg, specs, str(out))
+        yield from map(_run_chunk, todo)
+        _WORKER["scenes"].close()
+    else:
+        ctx = mp.get_context("spawn")  # fresh processes: GL contexts are made inside them
+        with ctx.Pool(workers, initializer=_init_worker, initargs=(cfg, specs, str(out))) as pool:
+            yield from pool.imap_unordered(_run_chunk, todo)
 
 
 # --------------------------------------------------------------------------------- the run
 def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool = False,
-             progress: bool = True) -> dict:
+             progress: bool = True, engine: EngineCfg | None = None) -> dict:
     """Generate (or resume) a dataset of `cfg.n` configurations in `out`; returns the manifest.
 
     Args:
         cfg: the full generation config (its seed included).
         out: dataset folder to create (or to resume).
-        workers: worker processes; 0 means all cores, 1 runs in this process.
+        workers: worker processes; 0 means all cores, 1 runs in this process (with the Ray
+            engine: the CPUs of a local Ray instance).
         resume: continue an interrupted run made with the same settings.
         progress: show a progress bar with rate and ETA.
+        engine: local processes (default) or Ray tasks (`vistac_sim.generate.on_ray`).
 
     Raises:
         UserError: bad options, bad meshes (strict), or an `out` that cannot be used.
     """
     t0 = time.perf_counter()
     out = Path(out)
+    engine = engine or EngineCfg()
     workers = min(workers or mp.cpu_count(), mp.cpu_count())
     specs, skipped = object_specs(cfg, cfg.seed)
     run_state = {"config": cfg.to_dict(), "objects": [s.__dict__ for s in specs]}
@@ -110,16 +138,14 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
     workers = max(1, min(workers, len(todo)))  # no idle processes
     bar = tqdm(total=cfg.n, initial=sum(len(c.config_ids) for c in chunks if c.index in done),
                unit="cfg", desc="generate", disable=not progress, smoothing=0.1)
-    if workers == 1 or len(todo) <= 1:
-        _init_worker(cfg, specs, str(out))
-        for count in map(_run_chunk, todo):
-            bar.update(count)
-        _WORKER["scenes"].close()
+    if engine.engine == "ray":
+        from vistac_sim.generate.on_ray import run_chunks_on_ray
+
+        committed = run_chunks_on_ray(cfg, specs, out, todo, engine, num_cpus=workers)
     else:
-        ctx = mp.get_context("spawn")  # fresh processes: GL contexts are made inside them
-        with ctx.Pool(workers, initializer=_init_worker, initargs=(cfg, specs, str(out))) as pool:
-            for count in pool.imap_unordered(_run_chunk, todo):
-                bar.update(count)
+        committed = _run_local(cfg, specs, out, todo, workers)
+    for count in committed:
+        bar.update(count)
     bar.close()
     manifest = {
         "generator": "vistac generate",
@@ -133,6 +159,7 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
                    "px_per_m": cfg.render.image_size / cfg.render.view_extent,
                    "camera_xy": [0.0, 0.0]},
         "workers": workers,
+        "engine": engine.engine,
         "resumed": bool(resume),
         "wall_time_s": round(time.perf_counter() - t0, 3),
     }

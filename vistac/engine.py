@@ -1,0 +1,174 @@
+"""Where the work of `generate` and `tune` runs: local processes, or Ray tasks on a cluster.
+
+`EngineCfg` holds the options (``--engine``, ``--ray-address``, ``--max-concurrent``);
+`ray_session` starts a local Ray instance (or joins a cluster) for the length of a run;
+`RayRunner` runs a batch of job configs as Ray tasks. Ray does the scheduling, the resource
+accounting (each task asks for ``num_cpus``), the retries of tasks whose worker died
+(``max_retries``) and the completion order (``ray.wait``); the runner only keeps at most
+`concurrency` tasks in flight, so a long batch does not flood the object store and a sequential
+optimiser can ask for just that many suggestions at a time.
+
+Ray is an optional extra (``pip install 'vistac[ray]'``) and is imported only by `ray_session`.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any, Literal
+
+from vistac.config import Config, ConfigError, param
+from vistac.errors import UserError
+
+ENGINE_OPTIONS = ("engine", "ray_address", "max_concurrent")
+LOCAL_OBJECT_STORE_BYTES = 256 * 2**20  # a local instance's object store: results are small
+
+
+@dataclass
+class EngineCfg(Config):
+    """Which engine runs the tasks of a command, and where."""
+
+    engine: Literal["local", "ray"] = param(
+        "local", help="local: processes on this machine; ray: Ray tasks, on a local Ray "
+        "instance or on the cluster of --ray-address")
+    ray_address: str | None = param(
+        None, metavar="ADDR", help="Ray cluster to join (e.g. HEAD_IP:6379); default: "
+        "$RAY_ADDRESS, else a local Ray instance started for this run")
+    max_concurrent: int | None = param(
+        None, ge=1, metavar="K", help="with --engine ray: at most K tasks at once (default: "
+        "as many as the cluster has CPUs)")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.engine == "local":
+            for key in ("ray_address", "max_concurrent"):
+                if getattr(self, key) is not None:
+                    raise ConfigError(key, "needs --engine ray")
+
+    @property
+    def address(self) -> str | None:
+        """The cluster to join: --ray-address, else $RAY_ADDRESS, else None (start one)."""
+        return self.ray_address or os.environ.get("RAY_ADDRESS") or None
+
+
+def import_ray() -> Any:
+    """The `ray` module.
+
+    Raises:
+        UserError: Ray is not installed.
+    """
+    try:
+        import ray
+    except ImportError:
+        raise UserError("--engine ray: Ray is not installed; pip install 'vistac[ray]'") from None
+    return ray
+
+
+@contextmanager
+def ray_session(engine: EngineCfg, num_cpus: int | None = None) -> Iterator[Any]:
+    """Ray, initialised for the length of the block; yields the `ray` module.
+
+    Without an address a local instance is started with `num_cpus` CPUs (default: all cores),
+    a small object store and no dashboard, and shut down at the end. With one (or
+    ``RAY_ADDRESS``) the driver joins that cluster and leaves it at the end. A session that is
+    already initialised (by the caller) is used as it is and left running.
+
+    Raises:
+        UserError: Ray is missing, or the cluster at the address cannot be joined.
+    """
+    ray = import_ray()
+    if ray.is_initialized():
+        yield ray
+        return
+    quiet = {"logging_level": "ERROR", "log_to_driver": False}
+    if engine.address:
+        try:
+            ray.init(address=engine.address, **quiet)
+        except (ConnectionError, RuntimeError, ValueError) as exc:
+            first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+            raise UserError(f"--ray-address {engine.address}: cannot join the Ray cluster "
+                            f"({first})") from None
+    else:  # "local": a fresh instance, even when a cluster runs on this machine
+        ray.init(address="local", num_cpus=num_cpus or os.cpu_count(),
+                 object_store_memory=LOCAL_OBJECT_STORE_BYTES, include_dashboard=False, **quiet)
+    try:
+        yield ray
+    finally:
+        ray.shutdown()
+
+
+def _call(job: Callable[[Any], Any], item: Any) -> Any:
+    """The body of every task: one job config through the job."""
+    return job(item)
+
+
+class RayRunner:
+    """Runs a batch of job configs as Ray tasks, yielding results as the tasks finish.
+
+    Args:
+        ray: The initialised `ray` module (from `ray_session`).
+        job: A picklable callable, job config -> result; it is shipped to the cluster once.
+        returned_errors: Exception types that a job raises as a result (a failed trial, say):
+            they are yielded in place of the result instead of ending the batch. Any other
+            exception ends the batch (a `UserError` raised by a job is raised as itself).
+        max_concurrent: At most this many tasks in flight (None: as many as fit the cluster's
+            CPUs at `num_cpus` per task).
+        num_cpus: CPUs Ray reserves for each task.
+        max_retries: Times Ray re-runs a task whose worker process or node died.
+    """
+
+    def __init__(self, ray: Any, job: Callable[[Any], Any],
+                 returned_errors: tuple[type[BaseException], ...] = (),
+                 max_concurrent: int | None = None, num_cpus: float = 1, max_retries: int = 3):
+        self.ray, self.returned_errors = ray, tuple(returned_errors)
+        self._task = ray.remote(_call).options(num_cpus=num_cpus, max_retries=max_retries)
+        self._job = ray.put(job)
+        fits = int(ray.cluster_resources().get("CPU", 0) // num_cpus)
+        self.concurrency = max(1, min(fits, max_concurrent or fits))
+
+    def run(self, items: Iterable[Any]) -> Iterator[tuple[int, Any]]:
+        """(position in `items`, result) of every job config, in the order they finish.
+
+        Raises:
+            UserError: a job raised one (as the job raised it).
+            ray.exceptions.RayError: a job raised another error not in `returned_errors` (with
+                the remote traceback), or its task failed more than `max_retries` times.
+        """
+        todo = enumerate(items)
+        pending: dict[Any, int] = {}
+        try:
+            while True:
+                for position, item in todo:
+                    pending[self._task.remote(self._job, item)] = position
+                    if len(pending) >= self.concurrency:
+                        break
+                if not pending:
+                    return
+                (ref,), _ = self.ray.wait(list(pending), num_returns=1)
+                yield pending.pop(ref), self._result(ref)
+        finally:  # an early stop (error, interrupt, a closed generator): drop what is left
+            for ref in pending:
+                self.ray.cancel(ref)
+
+    def map(self, items: Iterable[Any]) -> list[Any]:
+        """The results of every job config, in the order of `items`."""
+        items = list(items)
+        results: list[Any] = [None] * len(items)
+        for position, result in self.run(items):
+            results[position] = result
+        return results
+
+    __call__ = map
+
+    def _result(self, ref: Any) -> Any:
+        try:
+            return self.ray.get(ref)
+        except self.ray.exceptions.RayTaskError as exc:
+            cause = exc.cause
+            if isinstance(cause, self.returned_errors):
+                return cause
+            if isinstance(cause, UserError):
+                raise cause from None
+            raise
