@@ -370,6 +370,7 @@ def test_a_full_disk_is_one_line_and_a_rerun_works(env, monkeypatch, capsys):
     monkeypatch.setattr(files, "atomic_write_bytes", _enospc)
     assert main(GEN_OK.format(out=out).split()) == 2
     _one_error_line(capsys, "No space left on device")
+    assert not out.exists()  # it had committed nothing: nothing is left
     monkeypatch.undo()
     assert main(GEN_OK.format(out=out).split()) == 0  # stopped before its first shard
 
