@@ -38,7 +38,7 @@ from tqdm import tqdm
 
 from vistac.config import Config, param
 from vistac.dataset import FINGERS, DatasetTables
-from vistac.dataset.files import write_table
+from vistac.dataset.files import remove_stale_temporaries, write_table
 from vistac.errors import UserError
 from vistac_learn.data.variants import read_rgb
 
@@ -268,6 +268,7 @@ def fingertip_table(tables: DatasetTables, cfg: LocatorCfg = LocatorCfg(),
     frame = pd.DataFrame(rows)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
+        remove_stale_temporaries(path.parent)  # what a killed run left
         write_table(path, frame)
     except OSError as exc:
         raise UserError(f"{path.parent}: cannot write the fingertip cache ({exc}); "

@@ -12,6 +12,7 @@ from typing import Literal
 from vistac.config import Config, ConfigError, HelpFormatter, add_options, from_options, param
 from vistac.dataset import read_manifest
 from vistac.dataset.files import check_out_dir
+from vistac.errors import UserError
 from vistac_learn.data.samples import FINGER_CHOICES, ROTATION_MODES, RotationCfg
 from vistac_learn.train.config import DEVICES
 
@@ -82,7 +83,10 @@ def _handler(args: argparse.Namespace) -> int:
 
     cfg = from_options(EvaluateCfg, args, OPTIONS)
     if cfg.data is not None:
-        read_manifest(Path(cfg.data))
+        try:
+            read_manifest(Path(cfg.data))
+        except UserError as exc:
+            raise UserError(f"--data {exc}") from None
     check_out_dir(cfg.out_dir)
     if cfg.baseline:
         res = evaluate_baseline(cfg.data, cfg.out_dir, cfg.split, cfg.finger,

@@ -53,7 +53,10 @@ def check_paths(cfg: TrainCfg) -> None:
     Raises:
         UserError: naming the option.
     """
-    read_manifest(Path(cfg.data))
+    try:
+        read_manifest(Path(cfg.data))
+    except UserError as exc:
+        raise UserError(f"--data {exc}") from None
     check_out_dir(cfg.out)
     if cfg.cache_dir is not None:
         check_out_dir(cfg.cache_dir, "--cache-dir")

@@ -172,6 +172,10 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
     started = last_path.exists()
     if resume and not started and not (out / "config.json").exists():
         raise UserError(f"{out}: no run to resume (no config.json); drop --resume to start one")
+    if not resume and started and _diverged(out):  # a rerun (with a lower lr) starts over
+        for p in (last_path, best_path, metrics_path):
+            p.unlink(missing_ok=True)
+        started = False
     if not resume and started:
         raise UserError(f"{out}: already holds a run; pass --resume or choose another --out")
 
@@ -289,10 +293,23 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
                     f"epoch {epoch + 1}/{cfg.epochs}: train loss {row['train_loss']:.4g}, "
                     f"val loss {val_loss:.4g}, {cfg.select} {value:.4g}"
                     + (" (best)" if improved else "") + f", {row['epoch_s']:.1f} s")
+    except TrainingDiverged as exc:  # mark the run, so that a rerun into --out starts over
+        meta = json.loads((out / "config.json").read_text())
+        atomic_write_json(out / "config.json", meta | {"diverged": {"epoch": exc.epoch,
+                                                                     "message": str(exc)}})
+        raise
     finally:
         train_ds.close()
         val_ds.close()
     return out
+
+
+def _diverged(out: Path) -> bool:
+    """Whether the run in `out` stopped on a non-finite loss."""
+    try:
+        return bool(json.loads((out / "config.json").read_text()).get("diverged"))
+    except (OSError, ValueError):
+        return False
 
 
 def _train_mode(model: torch.nn.Module, freeze: str) -> None:
@@ -328,7 +345,15 @@ def _run_meta(cfg, model, tables, fingerprint, train_ds, val_ds, device, init_no
 
 
 def _macs(model, shape, count_macs) -> int:
-    """MACs of one sample (every finger's crop for per-finger models)."""
-    if hasattr(model, "n_fingers"):
-        return model.n_fingers * count_macs(model.net, shape[1:])
-    return count_macs(model, shape)
+    """MACs of one sample (every finger's crop for per-finger models).
+
+    Raises:
+        UserError: the model cannot take inputs of this size (``--size`` too small).
+    """
+    try:
+        if hasattr(model, "n_fingers"):
+            return model.n_fingers * count_macs(model.net, shape[1:])
+        return count_macs(model, shape)
+    except RuntimeError as exc:
+        raise UserError(f"--size {shape[-1]}: too small for this model "
+                        f"({str(exc).splitlines()[0]})") from None

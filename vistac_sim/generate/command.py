@@ -96,15 +96,35 @@ def check_workers(workers: int, option: str = "--workers") -> int:
     return min(workers or cores, cores)
 
 
+def drop_unstarted_run(out: Path, existed: bool) -> None:
+    """After a failed run: remove what it made if it committed no shard (nothing to resume)."""
+    import shutil
+
+    from vistac.dataset.schema import IMAGES, MANIFEST, PARTIAL
+    from vistac_sim.generate.shards import finished_chunks
+
+    if (out / MANIFEST).exists() or not (out / PARTIAL).is_dir() or finished_chunks(out):
+        return
+    for name in (PARTIAL, IMAGES, "recordings"):
+        shutil.rmtree(out / name, ignore_errors=True)
+    if not existed and out.is_dir() and not any(out.iterdir()):
+        out.rmdir()
+
+
 def _generate(args: argparse.Namespace) -> int:
     from vistac_sim.generate.run import generate
 
     cfg = generate_cfg_from_args(args)
     workers = check_workers(args.workers)
     engine = from_options(EngineCfg, args, ENGINE_OPTIONS)
-    check_out_dir(args.out)
-    manifest = generate(cfg, args.out, workers=workers, resume=args.resume,
-                        progress=not args.no_progress, engine=engine)
+    out = check_out_dir(args.out)
+    existed = out.exists()
+    try:
+        manifest = generate(cfg, args.out, workers=workers, resume=args.resume,
+                            progress=not args.no_progress, engine=engine)
+    except BaseException:
+        drop_unstarted_run(out, existed)
+        raise
     summary = {k: manifest[k] for k in ("counts", "redraws", "wall_time_s")}
     print(f"wrote {args.out}: " + json.dumps(summary))
     return 0

@@ -28,9 +28,11 @@ class GraspCfg(Config):
     approach_spread_deg: float = param(
         20.0, ge=0, lt=90, flag="--approach-spread",
         help="max degrees of the approach direction off the surface normal")
-    min_opposition_deg: float = param(90.0, ge=0, le=180, help="min angle between index and thumb approach "
+    min_opposition_deg: float = param(90.0, ge=0, le=180,
+                                      help="min angle between index and thumb approach "
                                       "directions")
-    max_redraws: int = param(60, ge=0, le=100_000, help="per configuration, before the run fails loudly")
+    max_redraws: int = param(60, ge=0, le=100_000,
+                             help="per configuration, before the run fails loudly")
 
 
 @dataclass

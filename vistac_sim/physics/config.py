@@ -14,14 +14,16 @@ class PhysicsCfg(Config):
     friction: float = param(0.6, ge=0,
                             help="sliding friction coefficient (0: frictionless)")
     timestep: float = param(0.002, gt=0, le=0.1, help="s per MuJoCo step")
-    settle_steps: int = param(150, ge=1, le=1_000_000, help="steps of a press; 0.3 s: forces agree with 1000 steps "
+    settle_steps: int = param(150, ge=1, le=1_000_000,
+                              help="steps of a press; 0.3 s: forces agree with 1000 steps "
                               "to ~1e-9 N (median)")
     solref: tuple[float, float] = param((0.004, 1.0), help="MuJoCo solref of every contact")
     solimp: tuple[float, float, float] = param((0.99, 0.999, 0.0005), gt=0,
                                                help="MuJoCo solimp of every contact")
     max_penetration: float = param(0.001, gt=0, help="m; deeper contacts are rejected")
     max_speed: float = param(1e-3, gt=0, help="m/s; a tip still moving after settling is rejected")
-    cone_tolerance_deg: float = param(3.0, ge=0, le=90, help='slack of the check "force within the friction '
+    cone_tolerance_deg: float = param(3.0, ge=0, le=90,
+                                      help='slack of the check "force within the friction '
                                       'cone"')
 
     def __post_init__(self) -> None:

@@ -24,4 +24,5 @@ class RecordingCfg(Config):
     release_s: float = param(0.4, gt=0, help="s of the release")
     overshoot: float = param(0.08, ge=0, lt=1, help="fraction the force relaxes after the peak")
     relax_s: float = param(0.1, gt=0, help="time constant of that relaxation")
-    timing_jitter: float = param(0.2, ge=0, lt=1, help="relative, uniform variation of the durations")
+    timing_jitter: float = param(0.2, ge=0, lt=1,
+                                 help="relative, uniform variation of the durations")

@@ -7,9 +7,9 @@ import json
 from pathlib import Path
 
 from vistac.config import ConfigError, HelpFormatter, add_options, from_options
+from vistac.dataset import SplitCfg
 from vistac.dataset.files import check_out_dir
 from vistac.errors import UserError
-from vistac.dataset import SplitCfg
 from vistac_sim.recording.ingest.config import ColumnMap, IngestCfg, IngestSources
 from vistac_sim.recording.ingest.run import ingest
 

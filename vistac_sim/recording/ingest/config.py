@@ -57,5 +57,6 @@ class IngestSources(Config):
                                      "per configuration")
     split: SplitCfg = field(default_factory=SplitCfg)
     seed: int = param(0, ge=0, lt=2**32, help="seed of the split")
-    image_size: int | None = param(None, ge=16, le=4096, help="crop images square (centre) and resize to this "
+    image_size: int | None = param(None, ge=16, le=4096,
+                                   help="crop images square (centre) and resize to this "
                                    "size (default: keep)")

@@ -275,7 +275,8 @@ def _manifest(src: IngestSources, cfg: IngestCfg, cfg_df, prs_df, rej_df, droppe
         "complete": True,
         "config": {"ingest": to_dict(cfg), "split": to_dict(src.split)},
         "seed": src.seed,
-        "sources": {k: (str(v) if isinstance(v, Path) else v) for k, v in sources.items()},
+        "sources": {k: (str(v.absolute()) if isinstance(v, Path) else v)
+                    for k, v in sources.items()},
         "versions": files.versions("numpy", "pandas"),
         "effects": [],
         "counts": {**files.table_counts(cfg_df, prs_df),
