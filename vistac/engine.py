@@ -27,7 +27,7 @@ from vistac.config import Config, ConfigError, param
 from vistac.errors import UserError
 
 ENGINE_OPTIONS = ("engine", "ray_address", "max_concurrent")
-LOCAL_OBJECT_STORE_BYTES = 256 * 2**20  # a local instance's object store: results are small
+LOCAL_OBJECT_STORE_BYTES = 128 * 2**20  # a local instance's object store: results are small
 
 
 @dataclass
