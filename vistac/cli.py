@@ -5,6 +5,10 @@ declared from its config's fields where it has one) and a small handler turning 
 validated config into work. Only the chosen command's module is imported (so `vistac generate`
 does not pay for importing torch, nor `vistac train` for MuJoCo); `vistac --help` lists them all.
 A new sub-command is one line in `COMMANDS` plus its module.
+
+Bad input never ends in a traceback: a malformed command line, a `UserError` (an option, file or
+row its check refused) and an `OSError` (a full disk, a folder that cannot be written) are
+printed as one line ``vistac COMMAND: error: ...`` and exit with status 2.
 """
 
 from __future__ import annotations
@@ -30,9 +34,20 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
+class UsageError(Exception):
+    """A command line argparse cannot parse (unknown option, missing value, bad choice)."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line (raised, printed by `main`), not usage."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise UsageError(f"{self.prog}: error: {message} (see {self.prog} --help)")
+
+
 def build_parser(argv: list[str]) -> argparse.ArgumentParser:
     """The top-level parser; the full options of the command named in `argv` are loaded."""
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="vistac",
         description="Visuo-tactile datasets from MuJoCo (vistac_sim) and learning on them "
         "(vistac_learn). `vistac COMMAND --help` shows a command's options.",
@@ -48,17 +63,26 @@ def build_parser(argv: list[str]) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the `vistac` command."""
+    """Entry point of the `vistac` command; returns its exit status (2 for bad input)."""
     argv = sys.argv[1:] if argv is None else argv
-    args = build_parser(argv).parse_args(argv)
+    try:
+        args = build_parser(argv).parse_args(argv)
+    except UsageError as exc:
+        print(" ".join(str(exc).split()), file=sys.stderr)
+        return 2
     try:
         return int(args.func(args) or 0)
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
-    except UserError as exc:  # bad input: one clear line, no traceback
-        print(f"vistac {args.command}: error: {exc}", file=sys.stderr)
+    except (UserError, OSError) as exc:  # bad input, a full disk: one clear line, no traceback
+        print(f"vistac {args.command}: error: {one_line(exc)}", file=sys.stderr)
         return 2
+
+
+def one_line(exc: BaseException) -> str:
+    """The message of an error on one line."""
+    return " ".join(str(exc).split()) or type(exc).__name__
 
 
 if __name__ == "__main__":

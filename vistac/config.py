@@ -15,6 +15,7 @@ serves everything:
   `option_values` collects the parsed flags into such a mapping;
 - `to_dict` gives the JSON-able tree written into manifests and run folders.
 
+Every number must be finite: nan and inf are refused for every float field of every config.
 Values keep the type they were given in: an ``int`` passes as a ``float`` unchanged (a manifest
 shows what the scene file said), lists become tuples. A bound is violated only by a value that
 compares beyond it.
@@ -25,6 +26,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import functools
+import math
 import os
 import types
 import typing
@@ -151,6 +153,8 @@ def _is_a(value: Any, hint: Any) -> bool:
 
 
 def _check_allowed(value: Any, meta: Mapping[str, Any]) -> None:
+    if isinstance(value, float) and not math.isfinite(value):  # every float field, in one place
+        raise ValueError(f"must be a finite number, got {value!r}")
     why = f" ({meta['why']})" if meta.get("why") else ""
     choices = meta.get("choices")
     if choices is not None and value not in choices:

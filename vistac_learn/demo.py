@@ -17,7 +17,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from vistac.config import Config, add_options, from_options, param
+from vistac.config import Config, ConfigError, add_options, from_options, param
 
 
 @dataclass
@@ -30,6 +30,13 @@ class DemoCfg(Config):
     model: str = param("tipnet", help="registered model (`vistac models`)")
     workers: int = param(0, ge=0, help="generate processes (0: all cores)")
     seed: int = param(0, ge=0, lt=2**32, help="seed of the dataset and of the run")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        from vistac_learn.train.config import _is_model
+
+        if not _is_model(self.model):
+            raise ConfigError("model", f"unknown model {self.model!r} (see `vistac models`)")
 
 
 def run_demo(cfg: DemoCfg) -> Path:
@@ -127,5 +134,11 @@ OPTIONS = tuple(f.name for f in dataclasses.fields(DemoCfg))
 
 
 def _handler(args: argparse.Namespace) -> int:
-    run_demo(from_options(DemoCfg, args, OPTIONS))
+    from vistac.dataset.files import check_out_dir
+    from vistac_sim.generate.command import check_workers
+
+    cfg = from_options(DemoCfg, args, OPTIONS)
+    check_out_dir(cfg.out)
+    check_workers(cfg.workers)
+    run_demo(cfg)
     return 0

@@ -116,6 +116,10 @@ def test_resume_with_other_settings_is_refused(tmp_path, capsys):
     out = tmp_path / "d"
     (out / ".partial").mkdir(parents=True)
     (out / ".partial" / "run.json").write_text(json.dumps({"config": {"n": 1}, "objects": []}))
+    (out / ".partial" / "shards").mkdir()
+    for kind in ("configs", "presses"):  # one committed shard (a run without one restarts)
+        pd.DataFrame({"config_id": [0]}).to_parquet(
+            out / ".partial" / "shards" / f"chunk_00000.{kind}.parquet")
     assert _gen(out, "--n", "4", "--workers", "1", "--resume") == 2
     assert "other settings" in capsys.readouterr().err
 

@@ -1,4 +1,8 @@
-"""Writing dataset files: atomic bytes and JSON, deterministic Parquet tables, the manifest."""
+"""Writing dataset files: atomic bytes and JSON, deterministic Parquet tables, the manifest.
+
+Also the checks every command makes of its output folder before it starts (`check_out_dir`) and
+the clean-up of the temporaries a killed process left behind (`remove_stale_temporaries`).
+"""
 
 from __future__ import annotations
 
@@ -14,14 +18,23 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from vistac.dataset.schema import MANIFEST, SPLITS
+from vistac.errors import UserError
+
+
+def temporary_path(path: Path) -> Path:
+    """The temporary file `path` is written through: ``.<name>.<pid>.tmp`` next to it."""
+    return path.with_name(f".{path.name}.{os.getpid()}.tmp")
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write `data` to `path` through a temporary file and a rename."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-    os.replace(tmp, path)
+    """Write `data` to `path` through a temporary file and a rename (none is left on error)."""
+    tmp = temporary_path(path)
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def atomic_write_json(path: Path, obj: Any) -> None:
@@ -38,9 +51,62 @@ def write_table(path: Path, rows: list[dict] | pd.DataFrame) -> None:
     """Write rows as Parquet, atomically, with deterministic bytes for identical rows."""
     df = rows if isinstance(rows, pd.DataFrame) else pd.DataFrame(rows)
     table = pa.Table.from_pandas(df, preserve_index=False).replace_schema_metadata(None)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    pq.write_table(table, tmp, compression="zstd", write_statistics=False)
-    os.replace(tmp, path)
+    tmp = temporary_path(path)
+    try:
+        pq.write_table(table, tmp, compression="zstd", write_statistics=False)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def remove_stale_temporaries(folder: Path) -> int:
+    """Delete the ``.*.<pid>.tmp`` files in `folder` whose process no longer runs (a kill).
+
+    Returns:
+        How many were removed.
+    """
+    removed = 0
+    for p in Path(folder).glob(".*.tmp"):
+        pid = p.name.rsplit(".", 2)[-2]
+        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)):
+            p.unlink(missing_ok=True)
+            removed += 1
+    return removed
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process
+        return True
+    return True
+
+
+def check_out_dir(path: str | Path, option: str = "--out") -> Path:
+    """Check, before any work, that `path` can become (or is) an output folder.
+
+    The folder may exist (its contents are each command's business) or not yet; its nearest
+    existing parent must then be a writable folder.
+
+    Returns:
+        The absolute path.
+
+    Raises:
+        UserError: `path` (or a parent) is a file, or the folder cannot be written.
+    """
+    path = Path(path).expanduser().absolute()
+    if path.exists() and not path.is_dir():
+        raise UserError(f"{option} {path}: exists and is not a folder")
+    existing = path
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise UserError(f"{option} {path}: {existing} is a file, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise UserError(f"{option} {path}: {existing} is not writable")
+    return path
 
 
 def table_counts(configs: pd.DataFrame, presses: pd.DataFrame) -> dict[str, Any]:

@@ -8,7 +8,7 @@ from typing import Literal
 import numpy as np
 import pandas as pd
 
-from vistac.config import Config, param
+from vistac.config import Config, ConfigError, param
 from vistac.dataset.schema import SPLITS
 from vistac.errors import UserError
 
@@ -21,15 +21,24 @@ class SplitCfg(Config):
                                             help="split whole configurations or whole objects")
     fractions: tuple[float, float, float] = param((0.7, 0.15, 0.15), flag="--split",
                                                   metavar=("TRAIN", "VAL", "TEST"),
-                                                  help="split fractions")
+                                                  ge=0, le=1, help="split fractions, each "
+                                                  "in [0, 1], summing to 1")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if abs(sum(self.fractions) - 1) > 1e-6:
+            terms = " + ".join(f"{f:g}" for f in self.fractions)
+            raise ConfigError("fractions", f"must sum to 1, got {terms} = "
+                              f"{sum(self.fractions):g}")
 
 
 def assign_splits(configs: pd.DataFrame, by: str, fractions, seed: int) -> np.ndarray:
     """Split labels for whole configurations, or whole objects when `by == "object"`."""
     fr = np.asarray(fractions, float)
-    if fr.shape != (3,) or (fr < 0).any() or fr.sum() <= 0:
-        raise UserError(f"split fractions must be three non-negative numbers, got {fractions}")
-    fr = fr / fr.sum()
+    if fr.shape != (3,) or not np.isfinite(fr).all() or (fr < 0).any() \
+            or abs(fr.sum() - 1) > 1e-6:
+        raise UserError(f"split fractions must be three numbers in [0, 1] summing to 1, got "
+                        f"{fractions}")
     rng = np.random.default_rng([seed, 0x5B1])
     keys = configs["object_id"] if by == "object" else configs["config_id"]
     units = np.array(sorted(pd.unique(keys)))

@@ -10,6 +10,8 @@ from pathlib import Path
 from typing import Literal
 
 from vistac.config import Config, ConfigError, HelpFormatter, add_options, from_options, param
+from vistac.dataset import read_manifest
+from vistac.dataset.files import check_out_dir
 from vistac_learn.data.samples import FINGER_CHOICES, ROTATION_MODES, RotationCfg
 from vistac_learn.train.config import DEVICES
 
@@ -21,7 +23,7 @@ class EvaluateCfg(Config):
     run: str | None = param(None, help="run folder (from `vistac train`)")
     baseline: Literal["geometric"] | None = param(None, help="score a baseline instead of a run")
     data: str | None = param(None, help="dataset (default: the run's; required with --baseline)")
-    split: str = param("test", help="split to score")
+    split: str = param("test", choices=("train", "val", "test"), help="split to score")
     tta: bool = param(False, help="test-time augmentation: average each configuration's "
                       "rotations and its mirrored view")
     checkpoint: Literal["best", "last"] = param("best", help="the run's checkpoint")
@@ -30,7 +32,8 @@ class EvaluateCfg(Config):
     finger: str = param("index", choices=FINGER_CHOICES, help="baseline only: fingers to predict")
     rotations: str = param(RotationCfg.mode, choices=ROTATION_MODES,
                            help="baseline only: rotation set")
-    n_rotations: int = param(RotationCfg.n, help="baseline only: angles per configuration")
+    n_rotations: int = param(RotationCfg.n, ge=1, le=360,
+                             help="baseline only: angles per configuration")
     no_plots: bool = param(False, help="skip the PNG figures")
     device: str | None = param(None, choices=DEVICES, help="override the run's device")
     cross_dataset: bool = param(False, help="score the run on a --data other than the one it "
@@ -44,6 +47,8 @@ class EvaluateCfg(Config):
             raise ConfigError("baseline", "needs --data")
         if not self.baseline and not self.run:
             raise ConfigError("run", "required (or --baseline geometric --data D --out DIR)")
+        if self.run and not (Path(self.run) / "config.json").is_file():
+            raise ConfigError("run", f"{self.run} is not a run folder (no config.json)")
 
     @property
     def out_dir(self) -> Path:
@@ -76,6 +81,9 @@ def _handler(args: argparse.Namespace) -> int:
     from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 
     cfg = from_options(EvaluateCfg, args, OPTIONS)
+    if cfg.data is not None:
+        read_manifest(Path(cfg.data))
+    check_out_dir(cfg.out_dir)
     if cfg.baseline:
         res = evaluate_baseline(cfg.data, cfg.out_dir, cfg.split, cfg.finger,
                                 RotationCfg(cfg.rotations, cfg.n_rotations), cfg.tta,

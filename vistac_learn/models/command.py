@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 
+from vistac.errors import UserError
 from vistac_learn.models import list_models, model_info
 
 
@@ -63,6 +64,10 @@ def _run_models(args: argparse.Namespace) -> int:
     Returns:
         Exit code 0.
     """
+    for flag, value in (("--in-channels", args.in_channels),
+                        ("--out-features", args.out_features)):
+        if not 1 <= value <= 1024:
+            raise UserError(f"{flag}: must be in 1..1024, got {value}")
     infos = [model_info(name, args.in_channels, args.out_features) for name in list_models()]
     print(format_table(infos))
     print(f"MACs = multiply-accumulates of Conv2d/Linear for one {args.in_channels}-channel image "

@@ -4,8 +4,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+from pathlib import Path
 
 from vistac.config import HelpFormatter, add_options, apply, flag_labels, option_values
+from vistac.dataset import read_manifest
+from vistac.dataset.files import check_out_dir
+from vistac.errors import UserError
 from vistac_learn.train.config import PROTOCOLS, STUDY, TrainCfg, protocol_cfg
 
 OPTIONS = tuple(f.name for f in dataclasses.fields(TrainCfg)
@@ -42,9 +46,26 @@ def options_cfg(args: argparse.Namespace) -> TrainCfg:
     return apply(base, given, labels=flag_labels(TrainCfg, OPTIONS))
 
 
+def check_paths(cfg: TrainCfg) -> None:
+    """Before any work: the dataset is complete, --out and --cache-dir can be written, --init
+    is a finished run.
+
+    Raises:
+        UserError: naming the option.
+    """
+    read_manifest(Path(cfg.data))
+    check_out_dir(cfg.out)
+    if cfg.cache_dir is not None:
+        check_out_dir(cfg.cache_dir, "--cache-dir")
+    if cfg.init is not None and not (Path(cfg.init) / "checkpoints" / "best.pt").is_file():
+        raise UserError(f"--init {cfg.init}: not a finished run (no checkpoints/best.pt)")
+
+
 def _handler(args: argparse.Namespace) -> int:
     from vistac_learn.train.loop import train
 
-    out = train(options_cfg(args), resume=args.resume, progress=not args.quiet)
+    cfg = options_cfg(args)
+    check_paths(cfg)
+    out = train(cfg, resume=args.resume, progress=not args.quiet)
     print(f"run written to {out}")
     return 0

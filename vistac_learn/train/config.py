@@ -16,6 +16,7 @@ Two protocols, each a complete set of defaults (every option overrides either):
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,7 +36,7 @@ from vistac_learn.data.samples import (
     fingers_of,
 )
 from vistac_learn.data.views import TIP_VIEW, VIEWS, View, make_view
-from vistac_learn.models import create_model
+from vistac_learn.models import create_model, list_models
 from vistac_learn.models.tipnet import PerFinger
 
 DEVICES = ("auto", "cpu", "cuda")
@@ -100,6 +101,12 @@ class TrainCfg(Config):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        if self.model.lower() not in list_models() and not _is_model(self.model):
+            raise UserError(f"--model {self.model!r}: unknown; choose one of "
+                            f"{', '.join(list_models())} (`vistac models`)")
+        if self.select != "loss" and self.select not in selectable_metrics():
+            raise UserError(f"--select {self.select!r}: not a metric; choose loss or one of "
+                            f"{', '.join(selectable_metrics())}")
         if self.variant == TIP_VIEW and self.rotations != "none":
             raise UserError("--rotations: the tip view turns every crop to its finger, so "
                             "rotations change nothing; use --rotations none")
@@ -125,6 +132,27 @@ class TrainCfg(Config):
             return None
         d = AugmentCfg()
         return AugmentCfg(self.mirror, d.shift * j, d.turn * j, d.scale * j)
+
+
+def _is_model(name: str) -> bool:
+    """Whether `name` is a registered model under another spelling (e.g. the thesis's)."""
+    from vistac_learn.models.registry import _resolve
+
+    try:
+        _resolve(name)
+    except ValueError:
+        return False
+    return True
+
+
+@functools.cache
+def selectable_metrics() -> tuple[str, ...]:
+    """The summary metrics `--select` may name (those of `cone_metrics`)."""
+    from vistac_learn.metrics import cone_metrics
+
+    one = np.array([[0.0, -1.0]])
+    summary = cone_metrics(one, np.array([0]), [one])
+    return tuple(k for k, v in summary.items() if isinstance(v, int | float))
 
 
 STUDY = {"model": "schoeconv100-v3-fc160", "variant": "edge-index", "finger": "index",

@@ -59,6 +59,16 @@ from vistac_learn.train.config import (
 )
 
 HIGHER_IS_BETTER = frozenset({"correct_y_pct", "in_cone_pct", "n_in_cone"})
+RUN_FILES = frozenset({"config.json", "metrics.csv", "checkpoints", "eval"})
+
+
+class TrainingDiverged(UserError):
+    """A loss or a prediction that is not finite: the run stops, naming the epoch."""
+
+    def __init__(self, epoch: int, what: str, value: float, lr: float):
+        super().__init__(f"epoch {epoch}: the {what} is {value}; training diverged; restart "
+                         f"with a lower --lr (now {lr:g}), e.g. --lr {lr / 10:g}")
+        self.epoch = epoch
 
 
 def _selection_value(row: dict, select: str, fingers: tuple[str, ...]) -> tuple[float, bool]:
@@ -111,6 +121,10 @@ def _check_resume(cfg: TrainCfg, out: Path, fingerprint: str) -> None:
     if diff:
         raise UserError(f"{out / 'config.json'}: --resume with different settings "
                         f"({', '.join(diff)})")
+    planned = saved["train"].get("epochs")
+    if cfg.schedule == "onecycle" and planned != cfg.epochs:
+        raise UserError(f"--epochs {cfg.epochs}: the run's one-cycle schedule was planned for "
+                        f"{planned} epochs; resume with --epochs {planned}")
     if saved["dataset"]["fingerprint"] != fingerprint:
         raise UserError(f"--data {cfg.data}: not the dataset this run started on (its "
                         f"fingerprint differs from {saved['dataset']['path']}'s)")
@@ -149,6 +163,9 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
     out = Path(cfg.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: exists and is not a folder")
+    if out.is_dir() and not (out / "config.json").exists() \
+            and any(p.name not in RUN_FILES for p in out.iterdir()):
+        raise UserError(f"--out {out}: a folder that is not a run and not empty; choose another")
     ckpt_dir = out / "checkpoints"
     last_path, best_path = ckpt_dir / "last.pt", ckpt_dir / "best.pt"
     metrics_path = out / "metrics.csv"
@@ -232,9 +249,8 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
                 opt.zero_grad(set_to_none=True)
                 loss = masked_mse(apply_model(model, batch, device), y, batch["found"].to(device))
                 if not torch.isfinite(loss):
-                    raise UserError(
-                        f"epoch {epoch + 1}, batch {b + 1}: the training loss is "
-                        f"{float(loss.detach())}; training diverged; lower --lr (now {cfg.lr:g})")
+                    raise TrainingDiverged(epoch + 1, f"training loss (batch {b + 1})",
+                                           float(loss.detach()), cfg.lr)
                 loss.backward()
                 opt.step()
                 sched.step()
@@ -250,6 +266,8 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
             bar.close()
             train_time = time.perf_counter() - t0
             val_loss, pred = evaluate_loss(model, val_ds, device, cfg.eval_batch_size)
+            if not np.isfinite(pred).all():
+                raise TrainingDiverged(epoch + 1, "validation loss", val_loss, cfg.lr)
             row = {"epoch": epoch + 1, "train_loss": run_sum / max(run_n, 1),
                    "val_loss": val_loss, "lr": float(opt.param_groups[0]["lr"])}
             for f, m in score_predictions(pred, val_ds).items():

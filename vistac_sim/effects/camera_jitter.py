@@ -16,11 +16,11 @@ from vistac_sim.render.view import CameraPose, View
 class CameraJitterCfg(Config):
     """Small changes of the top camera per configuration: shift, scale, tilt and roll."""
 
-    shift_std: float = param(0.003, help="m, std of the view centre's shift per world axis")
-    scale_std: float = param(0.02, help="relative std of the scale (pixels per metre)")
-    tilt_std_deg: float = param(1.0, help="std of the view axis's lean off vertical, per "
+    shift_std: float = param(0.003, ge=0, help="m, std of the view centre's shift per world axis")
+    scale_std: float = param(0.02, ge=0, lt=0.5, help="relative std of the scale (pixels per metre)")
+    tilt_std_deg: float = param(1.0, ge=0, le=45, help="std of the view axis's lean off vertical, per "
                                 "horizontal axis")
-    roll_std_deg: float = param(1.0, help="std of the rotation about the view axis")
+    roll_std_deg: float = param(1.0, ge=0, le=180, help="std of the rotation about the view axis")
 
 
 @dataclass(frozen=True)

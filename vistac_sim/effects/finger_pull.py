@@ -20,7 +20,7 @@ class FingerPullCfg(Config):
     per-press draw (Gaussian), in each listed finger's own sensor frame.
     """
 
-    mean: float = param(0.15, help="systematic part, fraction of |F_z| (+y as seen in the study)")
+    mean: float = param(0.15, ge=-10, le=10, help="systematic part, fraction of |F_z| (+y as seen in the study)")
     spread: float = param(0.05, ge=0, help="per-press std of the fraction")
     config_spread: float = param(0.05, ge=0, help="per-configuration std of the fraction "
                                  "(shared by its presses)")

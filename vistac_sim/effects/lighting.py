@@ -19,14 +19,14 @@ class LightingCfg(Config):
     The headlight keeps only its ambient part; the key light adds diffuse and specular light.
     """
 
-    elevation_deg: tuple[float, float] = param((35.0, 80.0), help="uniform range above the "
+    elevation_deg: tuple[float, float] = param((35.0, 80.0), ge=0, le=90, help="uniform range above the "
                                                "table plane")
     azimuth_deg: tuple[float, float] = param((0.0, 360.0), help="uniform range, from world +x "
                                              "towards +y")
-    intensity: tuple[float, float] = param((0.4, 0.8), help="uniform range of the key light's "
+    intensity: tuple[float, float] = param((0.4, 0.8), ge=0, le=10, help="uniform range of the key light's "
                                            "diffuse")
-    ambient: tuple[float, float] = param((0.3, 0.55), help="uniform range of the ambient light")
-    specular: float = param(0.2, help="key light's specular")
+    ambient: tuple[float, float] = param((0.3, 0.55), ge=0, le=1, help="uniform range of the ambient light")
+    specular: float = param(0.2, ge=0, le=1, help="key light's specular")
 
 
 @dataclass(frozen=True)

@@ -21,8 +21,8 @@ class OverlayErrorCfg(Config):
     stored finger boxes follow the drawn fingers.
     """
 
-    offset_std: float = param(0.002, help="m, std of the shift per world axis")
-    rotation_std_deg: float = param(3.0, help="std of the rotation about the fingertip")
+    offset_std: float = param(0.002, ge=0, help="m, std of the shift per world axis")
+    rotation_std_deg: float = param(3.0, ge=0, le=180, help="std of the rotation about the fingertip")
     offset: tuple[float, float] = param((0.0, 0.0), help="m, fixed shift (world x, y) added to "
                                         "the draw")
     rotation_deg: float = param(0.0, help="fixed rotation (counter-clockwise seen from above) "

@@ -19,8 +19,8 @@ class ShadowsCfg(Config):
     Without the lighting effect a fixed key light of this direction casts the shadows.
     """
 
-    map_size: int = param(2048, help="texels of the shadow map (MuJoCo's `shadowsize`)")
-    elevation_deg: float = param(55.0, help="direction of the fixed key light (no lighting "
+    map_size: int = param(2048, ge=64, le=16384, help="texels of the shadow map (MuJoCo's `shadowsize`)")
+    elevation_deg: float = param(55.0, gt=0, le=90, help="direction of the fixed key light (no lighting "
                                  "effect)")
     azimuth_deg: float = param(30.0, help="azimuth of the fixed key light")
 

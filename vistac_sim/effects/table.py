@@ -16,10 +16,10 @@ from vistac_sim.render.view import TableTexture, View
 class TableCfg(Config):
     """Table colour and texture per configuration."""
 
-    rgb_std: float = param(0.05, help="std of the per-channel change of the table colour")
-    texture: float = param(0.04, help="relative std of the table's brightness pattern (0: plain)")
-    texture_scale: float = param(0.004, help="m, grain size of the pattern")
-    texture_octaves: int = param(3, help="layers of halving grain size")
+    rgb_std: float = param(0.05, ge=0, le=1, help="std of the per-channel change of the table colour")
+    texture: float = param(0.04, ge=0, le=1, help="relative std of the table's brightness pattern (0: plain)")
+    texture_scale: float = param(0.004, gt=0, help="m, grain size of the pattern")
+    texture_octaves: int = param(3, ge=1, le=12, help="layers of halving grain size")
 
 
 @dataclass(frozen=True)

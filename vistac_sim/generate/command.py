@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
+import sys
+from pathlib import Path
 
 from vistac.config import (
     HelpFormatter,
@@ -13,7 +16,9 @@ from vistac.config import (
     from_options,
     option_values,
 )
+from vistac.dataset.files import check_out_dir
 from vistac.engine import ENGINE_OPTIONS, EngineCfg
+from vistac.errors import UserError
 from vistac_sim.effects.presets import PRESETS, resolve
 from vistac_sim.generate.config import GenerateCfg
 
@@ -51,7 +56,8 @@ def add_command(sub: argparse._SubParsersAction) -> None:
                    help="also write recordings/NNNNNN.csv per configuration in the RH8D/FTS-3 "
                    "layout (50 Hz press/hold/release session, integer mN)")
     add_options(p, GenerateCfg, DRAW_OPTIONS)
-    p.add_argument("--workers", type=int, default=0, help="processes (0: all cores); with "
+    p.add_argument("--workers", type=int, default=0,
+                   help="processes (0: all cores; at most the cores and the chunks); with "
                    "--engine ray and no cluster: the CPUs of the local Ray instance")
     add_options(p, EngineCfg, ENGINE_OPTIONS)
     add_options(p, GenerateCfg, SCENE_OPTIONS)
@@ -70,15 +76,34 @@ def generate_cfg_from_args(args: argparse.Namespace) -> GenerateCfg:
                 labels=flag_labels(GenerateCfg, OPTIONS))
     cfg.effects, cfg.recording = resolve(args.preset, args.scene, args.noise)
     cfg.recording.write = cfg.recording.write or args.recordings
+    for path in cfg.objects.paths:
+        if not Path(path).exists():
+            raise UserError(f"--objects {path}: no such file or folder")
     return cfg
+
+
+def check_workers(workers: int, option: str = "--workers") -> int:
+    """`workers` checked (0: all cores) and capped at the cores, with a note when capped.
+
+    Raises:
+        UserError: a negative number.
+    """
+    cores = os.cpu_count() or 1
+    if workers < 0:
+        raise UserError(f"{option}: must be >= 0 (0: all {cores} cores), got {workers}")
+    if workers > cores:
+        print(f"note: {option} {workers} capped at the {cores} cores", file=sys.stderr)
+    return min(workers or cores, cores)
 
 
 def _generate(args: argparse.Namespace) -> int:
     from vistac_sim.generate.run import generate
 
     cfg = generate_cfg_from_args(args)
+    workers = check_workers(args.workers)
     engine = from_options(EngineCfg, args, ENGINE_OPTIONS)
-    manifest = generate(cfg, args.out, workers=args.workers, resume=args.resume,
+    check_out_dir(args.out)
+    manifest = generate(cfg, args.out, workers=workers, resume=args.resume,
                         progress=not args.no_progress, engine=engine)
     summary = {k: manifest[k] for k in ("counts", "redraws", "wall_time_s")}
     print(f"wrote {args.out}: " + json.dumps(summary))

@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from vistac.config import Config, param, to_dict
+from vistac.config import Config, ConfigError, param, to_dict
 from vistac.dataset import SplitCfg
 from vistac_sim.effects import EffectsCfg
 from vistac_sim.objects.config import ObjectsCfg
@@ -26,21 +26,21 @@ class GraspCfg(Config):
     """How contact targets and approach directions are drawn."""
 
     approach_spread_deg: float = param(
-        20.0, flag="--approach-spread",
+        20.0, ge=0, lt=90, flag="--approach-spread",
         help="max degrees of the approach direction off the surface normal")
-    min_opposition_deg: float = param(90.0, help="min angle between index and thumb approach "
+    min_opposition_deg: float = param(90.0, ge=0, le=180, help="min angle between index and thumb approach "
                                       "directions")
-    max_redraws: int = param(60, help="per configuration, before the run fails loudly")
+    max_redraws: int = param(60, ge=0, le=100_000, help="per configuration, before the run fails loudly")
 
 
 @dataclass
 class GenerateCfg(Config):
     """Everything `vistac generate` needs. Sub-trees default to their own defaults."""
 
-    n: int = param(200, ge=1, help="number of grasp configurations")
-    seed: int = param(0, help="seed of everything the run draws")
-    repeats: int = param(6, ge=1, help="presses per configuration")
-    chunk_size: int = param(50, help="configurations per shard (unit of work and of resume)")
+    n: int = param(200, ge=1, le=10_000_000, help="number of grasp configurations")
+    seed: int = param(0, ge=0, lt=2**32, help="seed of everything the run draws")
+    repeats: int = param(6, ge=1, le=10_000, help="presses per configuration")
+    chunk_size: int = param(50, ge=1, help="configurations per shard (unit of work and of resume)")
     hand: HandCfg = field(default_factory=HandCfg)
     objects: ObjectsCfg = field(default_factory=ObjectsCfg)
     grasp: GraspCfg = field(default_factory=GraspCfg)
@@ -49,6 +49,15 @@ class GenerateCfg(Config):
     effects: EffectsCfg = field(default_factory=EffectsCfg)
     recording: RecordingCfg = field(default_factory=RecordingCfg)
     split: SplitCfg = field(default_factory=SplitCfg)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        room = self.render.view_extent - 4 * self.hand.tip_radius  # both fingertips in view
+        if not self.objects.paths and self.objects.footprint[1] > room:
+            raise ConfigError("objects.footprint", (
+                f"MAX {self.objects.footprint[1]:g} m does not fit the view: with both "
+                f"fingertips it must be <= {room:.4g} m (view_extent {self.render.view_extent:g}"
+                f" m - 4 x tip_radius)"))
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-able dict of the whole tree (tuples become lists)."""

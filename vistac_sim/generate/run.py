@@ -130,12 +130,13 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
     out = Path(out)
     engine = engine or EngineCfg()
     preflight(engine)
-    workers = workers or mp.cpu_count()
+    workers = min(workers or mp.cpu_count(), mp.cpu_count())
     specs, skipped = object_specs(cfg, cfg.seed)
     run_state = {"config": cfg.to_dict(), "objects": [s.__dict__ for s in specs]}
     done = shards.start_run(out, run_state, resume)
     chunks = plan_chunks(cfg.n, cfg.seed, len(specs), cfg.chunk_size)
     todo = [c for c in chunks if c.index not in done]
+    workers = max(1, min(workers, len(todo)))  # no idle processes
     bar = tqdm(total=cfg.n, initial=sum(len(c.config_ids) for c in chunks if c.index in done),
                unit="cfg", desc="generate", disable=not progress, smoothing=0.1)
     if engine.engine == "ray":

@@ -14,9 +14,17 @@ import shutil
 from pathlib import Path
 
 import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 
 from vistac.dataset import FORMAT_VERSION, MANIFEST, assign_splits
-from vistac.dataset.files import atomic_write_json, table_counts, write_manifest, write_table
+from vistac.dataset.files import (
+    atomic_write_json,
+    remove_stale_temporaries,
+    table_counts,
+    write_manifest,
+    write_table,
+)
 from vistac.dataset.schema import CONFIGS, IMAGES, PARTIAL, PRESSES
 from vistac.errors import UserError
 
@@ -28,11 +36,31 @@ def shard_paths(out: Path, chunk: int) -> tuple[Path, Path]:
 
 
 def finished_chunks(out: Path) -> set[int]:
-    """Chunks whose shard was committed (the configs file is written last)."""
+    """Chunks whose shard was committed (the configs file is written last) and reads back.
+
+    A shard whose files do not read back as Parquet (truncated, damaged) is deleted, so that its
+    chunk is made again.
+    """
     d = out / PARTIAL / "shards"
     if not d.is_dir():
         return set()
-    return {int(p.name[6:11]) for p in d.glob("chunk_*.configs.parquet")}
+    done = set()
+    for cpath in d.glob("chunk_*.configs.parquet"):
+        chunk = int(cpath.name[6:11])
+        if all(_readable(p) for p in shard_paths(out, chunk)):
+            done.add(chunk)
+        else:
+            for p in shard_paths(out, chunk):
+                p.unlink(missing_ok=True)
+    return done
+
+
+def _readable(path: Path) -> bool:
+    try:
+        pq.read_metadata(path)
+    except (OSError, pa.ArrowException):
+        return False
+    return True
 
 
 def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
@@ -46,6 +74,11 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
     state_file = partial / "run.json"
     if (out / MANIFEST).exists():
         raise UserError(f"{out}: already holds a complete dataset; choose another --out")
+    if partial.is_dir() and not finished_chunks(out):  # stopped before its first shard
+        shutil.rmtree(partial)
+        shutil.rmtree(out / IMAGES, ignore_errors=True)
+        shutil.rmtree(out / "recordings", ignore_errors=True)
+        resume = False
     if resume:
         if not state_file.exists():
             raise UserError(f"{out}: nothing to resume (no interrupted run found there)")
@@ -55,6 +88,9 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
                           if previous.get(k) != run_state.get(k))
             raise UserError(f"{out}: the interrupted run used other settings ({', '.join(diff)}); "
                             "resume with the same options or choose another --out")
+        for folder in (partial / "shards", out / IMAGES, out / "recordings"):
+            if folder.is_dir():
+                remove_stale_temporaries(folder)
         return finished_chunks(out)
     if out.exists() and any(out.iterdir()):
         hint = " (an interrupted run: add --resume)" if state_file.exists() else ""

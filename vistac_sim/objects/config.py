@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from vistac.config import Config, param
+from vistac.config import Config, ConfigError, param
 from vistac_sim.objects.outlines import PROCEDURAL_FAMILIES
 
 
@@ -19,12 +19,21 @@ class ObjectsCfg(Config):
         (), flag="--objects", metavar="PATH",
         help="mesh files or folders (STL, OBJ, PLY, GLB) instead of the built-in procedural "
         "families")
-    n_objects: int = param(32, help="size of the procedural object library")
+    n_objects: int = param(32, ge=1, le=100_000, help="size of the procedural object library")
     footprint: tuple[float, float] = param(
-        (0.035, 0.075), metavar=("MIN", "MAX"),
+        (0.035, 0.075), gt=0, metavar=("MIN", "MAX"),
         help="longest top-view side of objects, metres")
-    height: tuple[float, float] = param((0.03, 0.05),
+    height: tuple[float, float] = param((0.03, 0.05), gt=0, le=1,
                                         help="m, extrusion height of procedural objects")
-    min_wall: float = param(0.001, help="m, thinnest wall a procedural outline may have")
+    min_wall: float = param(0.001, gt=0, help="m, thinnest wall a procedural outline may have")
     strict: bool = param(False, help="a bad mesh in a folder aborts the run instead of being "
                          "skipped")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        for name in ("footprint", "height"):
+            lo, hi = getattr(self, name)
+            if lo > hi:
+                raise ConfigError(name, f"MIN must be <= MAX, got {lo:g} > {hi:g}")
+        if not self.families:
+            raise ConfigError("families", "needs at least one family")

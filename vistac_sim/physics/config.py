@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from vistac.config import Config, param
+from vistac.config import Config, ConfigError, param
 
 
 @dataclass
@@ -13,13 +13,18 @@ class PhysicsCfg(Config):
 
     friction: float = param(0.6, ge=0,
                             help="sliding friction coefficient (0: frictionless)")
-    timestep: float = param(0.002, help="s per MuJoCo step")
-    settle_steps: int = param(150, help="steps of a press; 0.3 s: forces agree with 1000 steps "
+    timestep: float = param(0.002, gt=0, le=0.1, help="s per MuJoCo step")
+    settle_steps: int = param(150, ge=1, le=1_000_000, help="steps of a press; 0.3 s: forces agree with 1000 steps "
                               "to ~1e-9 N (median)")
     solref: tuple[float, float] = param((0.004, 1.0), help="MuJoCo solref of every contact")
-    solimp: tuple[float, float, float] = param((0.99, 0.999, 0.0005),
+    solimp: tuple[float, float, float] = param((0.99, 0.999, 0.0005), gt=0,
                                                help="MuJoCo solimp of every contact")
-    max_penetration: float = param(0.001, help="m; deeper contacts are rejected")
-    max_speed: float = param(1e-3, help="m/s; a tip still moving after settling is rejected")
-    cone_tolerance_deg: float = param(3.0, help='slack of the check "force within the friction '
+    max_penetration: float = param(0.001, gt=0, help="m; deeper contacts are rejected")
+    max_speed: float = param(1e-3, gt=0, help="m/s; a tip still moving after settling is rejected")
+    cone_tolerance_deg: float = param(3.0, ge=0, le=90, help='slack of the check "force within the friction '
                                       'cone"')
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if max(self.solimp[:2]) >= 1:
+            raise ConfigError("solimp", f"dmin and dmax must be < 1, got {self.solimp}")

@@ -12,10 +12,10 @@ from vistac.dataset.schema import FINGER_RGB, TABLE_RGB
 class RenderCfg(Config):
     """The orthographic top view."""
 
-    image_size: int = param(227, help="image side, pixels")
-    view_extent: float = param(0.16, help="m of table across the image")
-    table_rgb: tuple[float, float, float] = param(TABLE_RGB, help="table colour in [0, 1]")
-    index_rgb: tuple[float, float, float] = param(FINGER_RGB["index"],
+    image_size: int = param(227, ge=16, le=4096, help="image side, pixels")
+    view_extent: float = param(0.16, gt=0, help="m of table across the image")
+    table_rgb: tuple[float, float, float] = param(TABLE_RGB, ge=0, le=1, help="table colour in [0, 1]")
+    index_rgb: tuple[float, float, float] = param(FINGER_RGB["index"], ge=0, le=1,
                                                   help="colour the index finger is drawn in")
-    thumb_rgb: tuple[float, float, float] = param(FINGER_RGB["thumb"],
+    thumb_rgb: tuple[float, float, float] = param(FINGER_RGB["thumb"], ge=0, le=1,
                                                   help="colour the thumb is drawn in")

@@ -18,13 +18,13 @@ class HandCfg(Config):
     (`sim_assets/hand/README.md`).
     """
 
-    tip_radius: float = param(0.0095, help="radius of the tip capsule (its front cap is the pad)")
-    tip_half_length: float = param(0.008, help="half length of the tip capsule's straight part")
-    shaft_radius: float = param(0.0085, help="radius of the shaft (middle phalanx)")
-    shaft_length: float = param(0.045, help="drawn and collided middle phalanx behind the tip")
-    height: float = param(0.012, help="fingertip axis above the table top")
-    mass: float = param(0.03, help="kg, the moving fingertip body")
-    damping: float = param(4.0, help="N s/m on the slide joint, so the press settles quickly")
-    press_force: float = param(2.0, help="N, drive force along the approach direction")
-    standoff: float = param(0.003, help="m, gap between tip and target before the press")
-    travel: float = param(0.012, help='m, furthest the tip may move before "no contact"')
+    tip_radius: float = param(0.0095, gt=0, help="radius of the tip capsule (its front cap is the pad)")
+    tip_half_length: float = param(0.008, ge=0, help="half length of the tip capsule's straight part")
+    shaft_radius: float = param(0.0085, gt=0, help="radius of the shaft (middle phalanx)")
+    shaft_length: float = param(0.045, ge=0, help="drawn and collided middle phalanx behind the tip")
+    height: float = param(0.012, gt=0, help="fingertip axis above the table top")
+    mass: float = param(0.03, gt=0, help="kg, the moving fingertip body")
+    damping: float = param(4.0, ge=0, help="N s/m on the slide joint, so the press settles quickly")
+    press_force: float = param(2.0, gt=0, help="N, drive force along the approach direction")
+    standoff: float = param(0.003, ge=0, help="m, gap between tip and target before the press")
+    travel: float = param(0.012, gt=0, help='m, furthest the tip may move before "no contact"')

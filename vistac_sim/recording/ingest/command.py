@@ -6,7 +6,9 @@ import argparse
 import json
 from pathlib import Path
 
-from vistac.config import HelpFormatter, add_options, from_options
+from vistac.config import ConfigError, HelpFormatter, add_options, from_options
+from vistac.dataset.files import check_out_dir
+from vistac.errors import UserError
 from vistac.dataset import SplitCfg
 from vistac_sim.recording.ingest.config import ColumnMap, IngestCfg, IngestSources
 from vistac_sim.recording.ingest.run import ingest
@@ -44,7 +46,11 @@ def add_command(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_ingest(args: argparse.Namespace) -> int:
-    columns = ColumnMap(tuple(args.columns[:3]), tuple(args.columns[3:]))
+    try:
+        columns = ColumnMap(tuple(args.columns[:3]), tuple(args.columns[3:]))
+    except ConfigError as exc:
+        raise UserError(f"--columns: {exc.reason}") from None
+    check_out_dir(args.out)
     cfg = from_options(IngestCfg, args, CFG_OPTIONS + CRITERIA_OPTIONS, columns=columns)
     split = from_options(SplitCfg, args, SPLIT_OPTIONS)
     src = from_options(IngestSources, args, (*SOURCE_OPTIONS, "objects_csv", "seed",

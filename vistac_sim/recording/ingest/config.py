@@ -16,8 +16,8 @@ UNITS = {"mN": 1e-3, "N": 1.0}  # unit of the CSV's force cells -> newtons
 class ColumnMap(Config):
     """0-based CSV columns of each finger's F_x, F_y, F_z (contracts.md by default)."""
 
-    thumb: tuple[int, int, int] = param(FORCE_COLUMNS["thumb"])
-    index: tuple[int, int, int] = param(FORCE_COLUMNS["index"])
+    thumb: tuple[int, int, int] = param(FORCE_COLUMNS["thumb"], ge=0, le=100_000)
+    index: tuple[int, int, int] = param(FORCE_COLUMNS["index"], ge=0, le=100_000)
 
     def of(self, finger: str) -> tuple[int, int, int]:
         return getattr(self, finger)
@@ -36,7 +36,7 @@ class IngestCfg(Config):
     unit: str = param("mN", choices=tuple(UNITS), help="unit of the CSV force cells")
     threshold: float = param(0.1, ge=0, help="N on |index F_z| that starts and ends a grasp")
     min_samples: int = param(5, ge=1, help="shortest grasp kept, samples above the threshold")
-    saturation: float = param(9.9, help="N; a grasp with a force component this large is "
+    saturation: float = param(9.9, gt=0, help="N; a grasp with a force component this large is "
                               "rejected as clipped")
     min_force: float = param(0.02, ge=0, help="N; smallest |(F_y, F_z)| of a finger whose "
                              "direction is kept")
@@ -56,6 +56,6 @@ class IngestSources(Config):
     objects_csv: Path | None = param(None, help="CSV with object_id and config_id (or name) "
                                      "per configuration")
     split: SplitCfg = field(default_factory=SplitCfg)
-    seed: int = param(0, help="seed of the split")
-    image_size: int | None = param(None, help="crop images square (centre) and resize to this "
+    seed: int = param(0, ge=0, lt=2**32, help="seed of the split")
+    image_size: int | None = param(None, ge=16, le=4096, help="crop images square (centre) and resize to this "
                                    "size (default: keep)")

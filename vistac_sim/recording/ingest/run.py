@@ -69,6 +69,8 @@ def ingest(src: IngestSources, out: str | Path, cfg: IngestCfg | None = None) ->
     else:
         recordings = {}
         names = _sheet_names(sheet, images, src)
+    if src.image_size is None:
+        check_image_sizes([images[n] for n in names])
     ids = config_ids(names)
     objects = read_objects_csv(src.objects_csv, ids) if src.objects_csv else {}
 
@@ -136,6 +138,29 @@ def ingest(src: IngestSources, out: str | Path, cfg: IngestCfg | None = None) ->
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return manifest
+
+
+def check_image_sizes(paths: list[Path]) -> None:
+    """Refuse images of different sizes (without --image-size), naming the first odd one.
+
+    Raises:
+        UserError: an unreadable image, or one whose size differs from the first's.
+    """
+    from PIL import Image, UnidentifiedImageError
+
+    first = None
+    for path in paths:
+        try:
+            with Image.open(path) as im:
+                size = im.size
+        except (OSError, UnidentifiedImageError):
+            raise UserError(f"{path}: unreadable image") from None
+        if first is None:
+            first = (path, size)
+        elif size != first[1]:
+            raise UserError(f"{path}: {size[0]} x {size[1]} pixels, but {first[0].name} is "
+                            f"{first[1][0]} x {first[1][1]}; images must share one size (or "
+                            "pass --image-size N to crop and resize them all)")
 
 
 def _presses_of(cid: int, kept: list[Grasp], forces: np.ndarray) -> list[dict]:
