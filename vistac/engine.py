@@ -13,17 +13,21 @@ Ray is an optional extra (``pip install 'vistac[ray]'``) and is imported only by
 
 from __future__ import annotations
 
+import importlib.util
 import os
+import socket
+import sys
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Literal
 
 from vistac.config import Config, ConfigError, param
 from vistac.errors import UserError
 
 ENGINE_OPTIONS = ("engine", "ray_address", "max_concurrent")
-LOCAL_OBJECT_STORE_BYTES = 256 * 2**20  # a local instance's object store: results are small
+LOCAL_OBJECT_STORE_BYTES = 128 * 2**20  # a local instance's object store: results are small
 
 
 @dataclass
@@ -66,6 +70,21 @@ def import_ray() -> Any:
     return ray
 
 
+def preflight(engine: EngineCfg) -> None:
+    """Fail before a run touches its output when its engine cannot start.
+
+    Checks that Ray is installed and that the cluster address (if any) answers.
+
+    Raises:
+        UserError: Ray is missing, or nothing listens at the address.
+    """
+    if engine.engine == "ray":
+        if importlib.util.find_spec("ray") is None:  # not imported yet: see `_token_auth`
+            import_ray()
+        if engine.address:
+            _check_reachable(engine.address)
+
+
 @contextmanager
 def ray_session(engine: EngineCfg, num_cpus: int | None = None) -> Iterator[Any]:
     """Ray, initialised for the length of the block; yields the `ray` module.
@@ -78,12 +97,15 @@ def ray_session(engine: EngineCfg, num_cpus: int | None = None) -> Iterator[Any]
     Raises:
         UserError: Ray is missing, or the cluster at the address cannot be joined.
     """
+    if engine.address:
+        _token_auth()
     ray = import_ray()
     if ray.is_initialized():
         yield ray
         return
     quiet = {"logging_level": "ERROR", "log_to_driver": False}
     if engine.address:
+        _check_reachable(engine.address)
         try:
             ray.init(address=engine.address, **quiet)
         except (ConnectionError, RuntimeError, ValueError) as exc:
@@ -97,6 +119,36 @@ def ray_session(engine: EngineCfg, num_cpus: int | None = None) -> Iterator[Any]
         yield ray
     finally:
         ray.shutdown()
+
+
+def _check_reachable(address: str, timeout_s: float = 5.0) -> None:
+    """Fail fast on a cluster address nothing listens at (Ray itself retries for minutes).
+
+    Raises:
+        UserError: no connection to HOST:PORT within `timeout_s`.
+    """
+    host, _, port = address.split("://")[-1].rpartition(":")
+    if not host or not port.isdigit():
+        return  # "auto" and other forms Ray resolves itself
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except OSError as exc:
+        raise UserError(f"--ray-address {address}: no Ray cluster answers there ({exc}); "
+                        "start one with `ray start --head`") from None
+
+
+def _token_auth() -> None:
+    """Join with Ray's token authentication when a token is at hand and no mode is set.
+
+    `ray start --head` turns token authentication on by default (Ray 2.59 and later) with the
+    token in ``~/.ray/auth_token``, but a driver joining an address does not send that token
+    unless ``RAY_AUTH_MODE=token``, which Ray reads when it is imported. A token sent to a
+    cluster without authentication is ignored.
+    """
+    token_at_hand = (os.environ.get("RAY_AUTH_TOKEN") or os.environ.get("RAY_AUTH_TOKEN_PATH")
+                     or (Path.home() / ".ray" / "auth_token").is_file())
+    if token_at_hand and "ray" not in sys.modules:
+        os.environ.setdefault("RAY_AUTH_MODE", "token")
 
 
 def _call(job: Callable[[Any], Any], item: Any) -> Any:

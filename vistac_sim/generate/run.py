@@ -19,7 +19,7 @@ from tqdm import tqdm
 
 from vistac.dataset import files
 from vistac.dataset.schema import IMAGES
-from vistac.engine import EngineCfg
+from vistac.engine import EngineCfg, preflight
 from vistac_sim.effects import build_pipeline
 from vistac_sim.effects.registry import Pipeline
 from vistac_sim.generate import shards
@@ -129,6 +129,7 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
     t0 = time.perf_counter()
     out = Path(out)
     engine = engine or EngineCfg()
+    preflight(engine)
     workers = min(workers or mp.cpu_count(), mp.cpu_count())
     specs, skipped = object_specs(cfg, cfg.seed)
     run_state = {"config": cfg.to_dict(), "objects": [s.__dict__ for s in specs]}
