@@ -16,7 +16,8 @@ def write_report(result: dict, folder: Path) -> None:
     label = result.get("label") or ""
     name = f"generate_vs_bare_{label}.json" if label else "generate_vs_bare.json"
     (folder / name).write_text(json.dumps(result, indent=2) + "\n")
-    now_file, before_file = folder / "generate_vs_bare.json", folder / "generate_vs_bare_before.json"
+    now_file = folder / "generate_vs_bare.json"
+    before_file = folder / "generate_vs_bare_before.json"
     if not now_file.exists():
         return
     now = json.loads(now_file.read_text())

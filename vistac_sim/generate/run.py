@@ -2,9 +2,9 @@
 
 Work is cut into chunks of configurations that share one object (so a worker builds each object's
 scene and renderer once). Workers take tasks of consecutive chunks of the same object
-(`plan_tasks`), so each object's scene is built by about one worker, not by all. A chunk is a pure function of (seed, config ids, config), so the dataset
-is identical whatever the number of workers, and a resumed run redoes exactly the chunks that had
-not committed their shard.
+(`plan_tasks`), so each object's scene is built by about one worker, not by all. A chunk is a
+pure function of (seed, config ids, config), so the dataset is identical whatever the number of
+workers, and a resumed run redoes exactly the chunks that had not committed their shard.
 """
 
 from __future__ import annotations
