@@ -11,6 +11,8 @@ labels, effects, shards, resume bookkeeping, the final tables, and the `vistac` 
 
 The benchmark reports:
 1. the ratio generate / bare at `--n` (`--repeats` interleaved pairs; the ratio of the medians),
+   of wall time and of CPU time (user + system of all their processes: the fairer measure on a
+   machine that other jobs share),
 2. where the time goes: per-sample milliseconds per part of both, profiled in one process
    (`generate_breakdown.py`, at `--profile-n`),
 3. per-sample cost and peak memory against the number of configurations (`--scale-n`): each size
@@ -72,41 +74,50 @@ def _bare_worker(args: tuple[int, int, int, str, int]) -> int:
     return count
 
 
-def bare_loop(n: int, workers: int, out: Path, seed: int) -> float:
-    """Wall time (s) of the bare loop: `n` samples in `workers` spawned processes."""
+def _children_cpu() -> float:
+    """CPU seconds (user + system) of all waited-for descendants so far."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
+def bare_loop(n: int, workers: int, out: Path, seed: int) -> tuple[float, float]:
+    """Wall time and CPU time (s) of the bare loop: `n` samples in `workers` spawned processes."""
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)
     shares = [n // workers + (1 if w < n % workers else 0) for w in range(workers)]
-    t0 = time.perf_counter()
-    with mp.get_context("spawn").Pool(workers) as pool:
-        done = sum(pool.map(_bare_worker, [(w, workers, c, str(out), seed)
-                                           for w, c in enumerate(shares)]))
-    wall = time.perf_counter() - t0
+    cpu0, t0 = _children_cpu(), time.perf_counter()
+    pool = mp.get_context("spawn").Pool(workers)
+    done = sum(pool.map(_bare_worker, [(w, workers, c, str(out), seed)
+                                       for w, c in enumerate(shares)]))
+    pool.close()
+    pool.join()  # waited for: their CPU time counts
+    wall, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
     assert done == n
     shutil.rmtree(out)
-    return wall
+    return wall, cpu
 
 
-def run_generate(n: int, workers: int, out: Path, seed: int) -> tuple[float, float]:
-    """Wall time (s) of a `vistac generate` subprocess and the peak RSS (MiB) of the largest
-    child process so far (fresh interpreters measure one run)."""
+def run_generate(n: int, workers: int, out: Path, seed: int) -> tuple[float, float, float]:
+    """Wall time and CPU time (s) of a `vistac generate` subprocess (its workers included) and
+    the peak RSS (MiB) of the largest child process so far (fresh interpreters measure one
+    run)."""
     shutil.rmtree(out, ignore_errors=True)
-    t0 = time.perf_counter()
+    cpu0, t0 = _children_cpu(), time.perf_counter()
     subprocess.run([sys.executable, "-m", "vistac.cli", "generate", "--n", str(n),
                     "--noise", "0.05", "--seed", str(seed), "--workers", str(workers),
                     "--out", str(out), "--no-progress"], check=True, stdout=subprocess.DEVNULL)
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
     shutil.rmtree(out, ignore_errors=True)
-    return wall, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    return wall, cpu, resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
 
 
 def scale_point(n: int, workers: int, out: Path) -> dict:
     """One size of the scaling table, measured in a fresh interpreter."""
     probe = subprocess.run([sys.executable, __file__, "--one-run", str(n), str(workers),
                             str(out)], capture_output=True, text=True, check=True)
-    wall, peak = json.loads(probe.stdout.strip().splitlines()[-1])
+    wall, cpu, peak = json.loads(probe.stdout.strip().splitlines()[-1])
     return {"n": n, "wall_s": round(wall, 2), "ms_per_config": round(1e3 * wall / n, 3),
-            "peak_rss_mib": round(peak, 1)}
+            "cpu_ms_per_config": round(1e3 * cpu / n, 3), "peak_rss_mib": round(peak, 1)}
 
 
 def main() -> None:
@@ -125,14 +136,15 @@ def main() -> None:
     shutil.rmtree(args.out, ignore_errors=True)
     args.out.mkdir(parents=True)
 
-    pairs = []
+    pairs = []  # (bare wall, generate wall, bare CPU, generate CPU)
     for r in range(args.repeats):
-        bare = bare_loop(args.n, args.workers, args.out / "bare", args.seed)
-        gen, _ = run_generate(args.n, args.workers, args.out / "gen", args.seed)
-        pairs.append((bare, gen))
-        print(f"pair {r}: bare {bare:.2f} s, generate {gen:.2f} s", flush=True)
-    bare_med = statistics.median(b for b, _ in pairs)
-    gen_med = statistics.median(g for _, g in pairs)
+        bare, bare_cpu = bare_loop(args.n, args.workers, args.out / "bare", args.seed)
+        gen, gen_cpu, _ = run_generate(args.n, args.workers, args.out / "gen", args.seed)
+        pairs.append((bare, gen, bare_cpu, gen_cpu))
+        print(f"pair {r}: bare {bare:.2f} s ({bare_cpu:.1f} CPU s), generate {gen:.2f} s "
+              f"({gen_cpu:.1f} CPU s)", flush=True)
+    bare_med, gen_med, bare_cpu_med, gen_cpu_med = (statistics.median(p[i] for p in pairs)
+                                                    for i in range(4))
 
     sys.path.insert(0, str(Path(__file__).parent))
     from generate_breakdown import profile_bare, profile_generate
@@ -142,7 +154,10 @@ def main() -> None:
     scaling = [scale_point(n, args.workers, args.out / f"scale_{n}") for n in args.scale_n]
     result = {
         "label": args.label, "n": args.n, "workers": args.workers, "cpu_count": os.cpu_count(),
-        "pairs_s": [[round(b, 2), round(g, 2)] for b, g in pairs],
+        "pairs_s": [[round(b, 2), round(g, 2)] for b, g, _, _ in pairs],
+        "pairs_cpu_s": [[round(b, 2), round(g, 2)] for _, _, b, g in pairs],
+        "bare_loop_cpu_s": round(bare_cpu_med, 2), "generate_cpu_s": round(gen_cpu_med, 2),
+        "cpu_ratio_generate_over_bare": round(gen_cpu_med / bare_cpu_med, 3),
         "bare_loop_s": round(bare_med, 2), "generate_s": round(gen_med, 2),
         "ratio_generate_over_bare": round(gen_med / bare_med, 3),
         "bare_samples_per_s": round(args.n / bare_med, 1),
