@@ -84,6 +84,14 @@ def _init_worker(cfg: GenerateCfg, specs: list[ObjectSpec], out: str) -> None:
                    scenes=SceneCache(specs, cfg, size=4, cache_dir=default_cache_dir()))
 
 
+def _write_image(path: Path, data: bytes) -> None:
+    """Write one image in place (no temporary file and rename): an image only counts once its
+    chunk's shard is committed, after this write returned, and a resumed run rewrites the images
+    of every uncommitted chunk, so a torn image can never stay in a dataset."""
+    with open(path, "wb") as fh:
+        fh.write(data)
+
+
 def _run_task(task: list[Chunk]) -> int:
     return sum(map(_run_chunk, task))
 
@@ -96,7 +104,7 @@ def _run_chunk(chunk: Chunk) -> int:
         (out / "recordings").mkdir(exist_ok=True)
     for cid in chunk.config_ids:
         c = make_configuration(cid, cfg.seed, _WORKER["scenes"], cfg, _WORKER["pipeline"])
-        files.atomic_write_bytes(out / IMAGES / c.row["image"], c.png)
+        _write_image(out / IMAGES / c.row["image"], c.png)
         if c.recording is not None:
             files.atomic_write_bytes(out / "recordings" / recording_name(cid), c.recording)
         rows.append(c.row)
