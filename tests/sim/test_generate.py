@@ -150,3 +150,16 @@ def test_pixel_mapping_columns_agree_with_manifest(small_dataset):
     manifest, configs = t.manifest, t.configs
     assert np.allclose(configs["px_per_m"], manifest["render"]["px_per_m"])
     assert pd.api.types.is_integer_dtype(configs["config_id"])
+
+
+def test_tasks_hold_one_object_and_cover_every_chunk_once():
+    from vistac_sim.generate.run import plan_chunks, plan_tasks
+
+    chunks = plan_chunks(3000, 0, 7, 50)
+    for workers in (1, 2, 5):
+        tasks = plan_tasks(chunks, workers)
+        assert [c for t in tasks for c in t] == chunks  # in order, each chunk once
+        assert all(len({c.object_index for c in t}) == 1 for t in tasks)
+        limit = -(-3000 // (workers * 8))
+        assert all(sum(len(c.config_ids) for c in t[:-1]) < limit for t in tasks)
+    assert len(plan_tasks(chunks, 2)) < len(chunks)  # chunks of an object go together

@@ -34,6 +34,22 @@ def test_boxes_match_segmentation(pressed_scenes):
             np.testing.assert_allclose(boxes[k], seg_box, atol=1.5)
 
 
+def test_shared_context_renderer_draws_what_mujoco_renderer_draws(pressed_scenes):
+    """One GL context for all scenes, used in turns, gives MuJoCo's own renderer's pixels."""
+    from vistac_sim.mj import mujoco
+
+    cfg, scenes = pressed_scenes
+    size = cfg.render.image_size
+    for scene, _, rgb, seg in scenes[::-1]:  # other scenes' contexts were made after this one's
+        with mujoco.Renderer(scene.model, size, size) as ref:
+            ref.update_scene(scene.press.data, camera=scene.ids.camera,
+                             scene_option=scene.view.option)
+            np.testing.assert_array_equal(scene.view.render(scene.press.data), ref.render())
+            ref.enable_segmentation_rendering()
+            np.testing.assert_array_equal(seg, ref.render())
+        np.testing.assert_array_equal(scene.view.render(scene.press.data), rgb)
+
+
 def test_fingers_are_drawn_green_and_red(pressed_scenes):
     cfg, scenes = pressed_scenes
     for scene, _, rgb, seg in scenes:

@@ -1,9 +1,10 @@
 """`vistac generate`: many configurations, in worker processes, into a dataset directory.
 
 Work is cut into chunks of configurations that share one object (so a worker builds each object's
-scene and renderer once). A chunk is a pure function of (seed, config ids, config), so the dataset
-is identical whatever the number of workers, and a resumed run redoes exactly the chunks that had
-not committed their shard.
+scene and renderer once). Workers take tasks of consecutive chunks of the same object
+(`plan_tasks`), so each object's scene is built by about one worker, not by all. A chunk is a
+pure function of (seed, config ids, config), so the dataset is identical whatever the number of
+workers, and a resumed run redoes exactly the chunks that had not committed their shard.
 """
 
 from __future__ import annotations
@@ -52,6 +53,22 @@ def plan_chunks(n: int, seed: int, n_objects: int, chunk_size: int) -> list[Chun
     return chunks
 
 
+def plan_tasks(todo: list[Chunk], workers: int, per_worker: int = 8) -> list[list[Chunk]]:
+    """Group consecutive chunks of one object into tasks of at most ~1/(workers * per_worker)
+    of the work, so that a worker builds an object's scene once and the last tasks stay short."""
+    limit = max(1, -(-sum(len(c.config_ids) for c in todo) // (workers * per_worker)))
+    tasks: list[list[Chunk]] = []
+    size = 0
+    for c in todo:
+        if tasks and tasks[-1][-1].object_index == c.object_index and size < limit:
+            tasks[-1].append(c)
+            size += len(c.config_ids)
+        else:
+            tasks.append([c])
+            size = len(c.config_ids)
+    return tasks
+
+
 def object_specs(cfg: GenerateCfg, seed: int) -> tuple[list[ObjectSpec], list[dict]]:
     """The object library of a run (procedural, or user meshes) and the skipped meshes."""
     if cfg.objects.paths:
@@ -71,7 +88,7 @@ def commit_chunk(out: Path, chunk_index: int, made: list[Configuration]) -> int:
     if any(c.recording is not None for c in made):
         (out / "recordings").mkdir(exist_ok=True)
     for c in made:
-        files.atomic_write_bytes(out / IMAGES / c.row["image"], c.png)
+        _write_image(out / IMAGES / c.row["image"], c.png)
         if c.recording is not None:
             cid = c.row["config_id"]
             files.atomic_write_bytes(out / "recordings" / recording_name(cid), c.recording)
@@ -86,8 +103,22 @@ _WORKER: dict = {}
 
 
 def _init_worker(cfg: GenerateCfg, specs: list[ObjectSpec], out: str) -> None:
+    # Tasks hold one object each, so a few cached scenes suffice and memory does not grow with
+    # the size of the object library.
     _WORKER.update(cfg=cfg, out=Path(out), pipeline=build_pipeline(cfg.effects),
-                   scenes=SceneCache(specs, cfg, size=64, cache_dir=default_cache_dir()))
+                   scenes=SceneCache(specs, cfg, size=4, cache_dir=default_cache_dir()))
+
+
+def _write_image(path: Path, data: bytes) -> None:
+    """Write one image in place (no temporary file and rename): an image only counts once its
+    chunk's shard is committed, after this write returned, and a resumed run rewrites the images
+    of every uncommitted chunk, so a torn image can never stay in a dataset."""
+    with open(path, "wb") as fh:
+        fh.write(data)
+
+
+def _run_task(task: list[Chunk]) -> int:
+    return sum(map(_run_chunk, task))
 
 
 def _run_chunk(chunk: Chunk) -> int:
@@ -106,7 +137,7 @@ def _run_local(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[
     else:
         ctx = mp.get_context("spawn")  # fresh processes: GL contexts are made inside them
         with ctx.Pool(workers, initializer=_init_worker, initargs=(cfg, specs, str(out))) as pool:
-            yield from pool.imap_unordered(_run_chunk, todo)
+            yield from pool.imap_unordered(_run_task, plan_tasks(todo, workers))
 
 
 # --------------------------------------------------------------------------------- the run

@@ -7,6 +7,7 @@ World -> pixel (camera centred on the world origin, looking straight down):
 from __future__ import annotations
 
 import numpy as np
+from mujoco.rendering.classic import gl_context
 
 from vistac.dataset import FINGERS
 from vistac_sim.mj import mujoco
@@ -21,7 +22,7 @@ class TopView:
     def __init__(self, model: mujoco.MjModel, ids: SceneIds, cfg: RenderCfg, shadow_size: int = 0):
         self.model, self.ids, self.cfg = model, ids, cfg
         model.vis.quality.shadowsize = shadow_size  # shadow map texels; 0: no shadow pass
-        self.renderer = mujoco.Renderer(model, cfg.image_size, cfg.image_size)
+        self.renderer = SharedContextRenderer(model, cfg.image_size)
         self.option = mujoco.MjvOption()
         self.option.geomgroup[OBJECT_GROUP_COLLISION] = 0
         self.option.sitegroup[:] = 0
@@ -38,6 +39,63 @@ class TopView:
 
     def close(self) -> None:
         self.renderer.close()
+
+
+_GL_CONTEXTS: dict[int, object] = {}  # this process's GL context per image size
+
+
+class SharedContextRenderer(mujoco.Renderer):
+    """`mujoco.Renderer` of a square image drawing in this process's one GL context.
+
+    MuJoCo's renderer makes a GL context per instance and a visual scene of 10000 geoms; a
+    worker keeps one renderer per object, and making those cost ~50 ms and ~20 MB per object.
+    This one shares a GL context per process (each model still gets its own `MjrContext`, the
+    models' meshes and textures on the GPU) and sizes the visual scene to the model. Mirrors
+    ``mujoco.Renderer.__init__`` and ``close`` of the pinned MuJoCo (4.0.1); rendering is
+    inherited unchanged, so the pixels are the same (tested against `mujoco.Renderer`).
+    """
+
+    def __init__(self, model: mujoco.MjModel, size: int) -> None:  # noqa: D107
+        self._gl_context, self._mjr_context = None, None
+        if size > min(model.vis.global_.offwidth, model.vis.global_.offheight):
+            raise ValueError(f"image size {size} exceeds the model's offscreen framebuffer")
+        self._width = self._height = size
+        self._model = model
+        # Every model geom, plus room for the few decorations a view may add.
+        self._scene = mujoco.MjvScene(model=model, maxgeom=model.ngeom + 64)
+        self._scene_option = mujoco.MjvOption()
+        self._rect = mujoco.MjrRect(0, 0, size, size)
+        if gl_context.GLContext is not None:
+            if size not in _GL_CONTEXTS:
+                _GL_CONTEXTS[size] = gl_context.GLContext(size, size)
+            self._gl_context = _GL_CONTEXTS[size]
+            self._gl_context.make_current()
+        self._mjr_context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150.value)
+        mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._mjr_context)
+        self._mjr_context.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
+        self._depth_rendering = self._segmentation_rendering = False
+
+    def render(self, *, out: np.ndarray | None = None) -> np.ndarray:
+        """As `mujoco.Renderer.render`, after binding this model's offscreen buffer."""
+        if self._gl_context is not None and self._mjr_context is not None:
+            self._gl_context.make_current()
+            mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._mjr_context)
+        return super().render(out=out)
+
+    def close(self) -> None:
+        """Free this model's GPU resources; the shared GL context stays for the next one."""
+        if self._mjr_context:
+            if self._gl_context:
+                self._gl_context.make_current()
+            self._mjr_context.free()
+        self._mjr_context = None
+        self._gl_context = None
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 - at interpreter exit EGL may already be torn down
+            pass
 
 
 def px_per_m(cfg: RenderCfg) -> float:
