@@ -30,6 +30,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "train": ("vistac_learn.train.command", "train a model on a dataset"),
     "evaluate": ("vistac_learn.evaluate.command",
                  "score a run or a baseline with the study's metrics"),
+    "tune": ("vistac_learn.tune.command", "tune training options by Bayesian optimisation"),
+    "experiment": ("vistac_learn.experiments.command",
+                   "sim-to-real fine-tuning and label-noise experiments"),
     "demo": ("vistac_learn.demo", "generate, train, evaluate and report on a small default"),
 }
 

@@ -65,10 +65,11 @@ def check_paths(cfg: TrainCfg) -> None:
 
 
 def _handler(args: argparse.Namespace) -> int:
-    from vistac_learn.train.loop import train
+    from vistac_learn.train.job import JobCfg, run_job
 
     cfg = options_cfg(args)
     check_paths(cfg)
-    out = train(cfg, resume=args.resume, progress=not args.quiet)
-    print(f"run written to {out}")
+    res = run_job(JobCfg(cfg, resume="yes" if args.resume else "no", progress=not args.quiet))
+    print(f"run written to {res.run} (best epoch {res.best_epoch}, validation median angle "
+          f"{res.objective:.2f} deg)")
     return 0

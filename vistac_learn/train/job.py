@@ -1,0 +1,150 @@
+"""One training job: train a run, score it, return its numbers (`run_job`).
+
+`vistac train`, `vistac tune` and the experiments all run their training through `run_job`, a
+plain top-level function of one picklable config (`JobCfg`), so that a runner can execute jobs
+in this process (`LocalRunner`) or as Ray tasks (`vistac.engine.RayRunner`, same interface:
+``runner.run(items)`` yields ``(position, result)`` as jobs finish; ``runner.concurrency``).
+
+The objective of a job is the validation median angle to the cone mean (degrees, averaged over
+the run's fingers) at the epoch the run selected: the test split never enters it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import io
+import time
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import torch
+
+from vistac.config import Config, param
+from vistac_learn.data.samples import fingers_of
+from vistac_learn.train.config import TrainCfg
+from vistac_learn.train.loop import TrainingDiverged, train
+
+OBJECTIVE = "angle_to_mean_median_deg"
+RESUME = ("no", "yes", "auto")
+
+
+@dataclass(frozen=True)
+class ScoreCfg(Config):
+    """A split to score the job's best weights on after training."""
+
+    name: str = param(help="name of the score (folder eval/<name> of the run)")
+    split: str = param("test", choices=("train", "val", "test"), help="split to score")
+    data: str | None = param(None, help="dataset to score on (default: the run's own; "
+                             "another one is scored across datasets)")
+
+
+@dataclass(frozen=True)
+class JobCfg(Config):
+    """A training job: the run's settings, what to score afterwards, how to start."""
+
+    train: TrainCfg = param(help="the run")
+    scores: tuple[ScoreCfg, ...] = param((), help="scores of the best weights after training")
+    resume: str = param("auto", choices=RESUME, help="no: refuse a started run; yes: continue "
+                        "one (it must exist); auto: continue a started run, else start")
+    progress: bool = param(False, help="show progress bars")
+
+
+@dataclass(frozen=True)
+class JobResult:
+    """What a finished job measured.
+
+    Attributes:
+        run: The run folder.
+        objective: Validation median angle to the cone mean (deg, mean over fingers) at the
+            selected epoch.
+        best_epoch: The selected epoch (1-based).
+        epochs: Epochs trained.
+        first_train_loss: Training loss of the first epoch.
+        val: The selected epoch's validation row (``val_<finger>_<metric>`` -> value).
+        scores: Score name -> finger -> scalar metrics (see `ScoreCfg`).
+        seconds: Wall time of the job.
+    """
+
+    run: str
+    objective: float
+    best_epoch: int
+    epochs: int
+    first_train_loss: float
+    val: dict[str, float] = field(default_factory=dict)
+    scores: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
+    seconds: float = 0.0
+
+    def score(self, name: str, metric: str = OBJECTIVE) -> float:
+        """A score's metric averaged over the fingers."""
+        per = self.scores[name]
+        return float(sum(m[metric] for m in per.values()) / len(per))
+
+
+def run_job(cfg: JobCfg) -> JobResult:
+    """Train (or continue) the job's run, score it, return its numbers.
+
+    Raises:
+        TrainingDiverged: the loss became non-finite (a `UserError`).
+        UserError: bad settings or data.
+    """
+    from vistac_learn.evaluate.run import evaluate_run
+
+    t0 = time.perf_counter()
+    out = Path(cfg.train.out)
+    started = (out / "config.json").exists()
+    resume = cfg.resume == "yes" or (cfg.resume == "auto" and started)
+    train(cfg.train, resume=resume, progress=cfg.progress)
+    rows = _metrics_rows(out / "metrics.csv")
+    best = torch.load(out / "checkpoints" / "best.pt", map_location="cpu",
+                      weights_only=False)["epoch"]
+    row = next(r for r in rows if int(r["epoch"]) == best)
+    fingers = fingers_of(cfg.train.finger)
+    objective = sum(row[f"val_{f}_{OBJECTIVE}"] for f in fingers) / len(fingers)
+    scores = {}
+    for s in cfg.scores:
+        with contextlib.redirect_stdout(io.StringIO()):  # the table is in metrics.json
+            res = evaluate_run(out, data=s.data, split=s.split, out=out / "eval" / s.name,
+                               make_plots=False, cross_dataset=s.data is not None)
+        scores[s.name] = res["metrics"]
+    return JobResult(str(out), float(objective), int(best), len(rows),
+                     float(rows[0]["train_loss"]),
+                     {k: v for k, v in row.items() if k.startswith("val_")}, scores,
+                     time.perf_counter() - t0)
+
+
+def _metrics_rows(path: Path) -> list[dict[str, float]]:
+    with path.open() as fh:
+        return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(fh)]
+
+
+class LocalRunner:
+    """Runs job configs one after the other in this process (the interface of
+    `vistac.engine.RayRunner`).
+
+    Args:
+        job: Job config -> result.
+        returned_errors: Exception types a job raises as its result (yielded in its place);
+            any other exception propagates.
+    """
+
+    concurrency = 1
+
+    def __init__(self, job: Callable[[Any], Any] = run_job,
+                 returned_errors: tuple[type[BaseException], ...] = (TrainingDiverged,)):
+        self.job, self.returned_errors = job, tuple(returned_errors)
+
+    def run(self, items: Iterable[Any]) -> Iterator[tuple[int, Any]]:
+        """(position, result) of each item, in order (items are drawn one at a time)."""
+        for position, item in enumerate(items):
+            try:
+                result = self.job(item)
+            except self.returned_errors as exc:
+                result = exc
+            yield position, result
+
+    def map(self, items: Iterable[Any]) -> list[Any]:
+        """The results in the order of `items`."""
+        return [r for _, r in self.run(items)]

@@ -1,0 +1,249 @@
+"""Bayesian optimisation of training options (`vistac tune`): `run_tune`.
+
+A Gaussian process (`bayes_opt`, suggest/register) proposes options; each trial is one training
+job (`vistac_learn.train.job.run_job`) on the base run's settings with the proposed options,
+scored by its validation median angle (lower is better; the optimiser maximises its negative).
+The test split is never used.
+
+Tuning folder (``--out T``):
+
+- ``config.json``: the tuning settings, the base run's full config and the search space.
+- ``trials.csv``: one row per finished trial (trial, options, objective, status, best epoch,
+  seconds, run folder), rewritten atomically after every trial; a row never changes once written.
+- ``pending.json``: trials suggested but not finished, with their options.
+- ``best.json``, ``convergence.png``: the best trial so far, best objective against trial.
+- ``trials/NNNN/``: each trial's run folder.
+
+Repeatability and resume: the suggestion for trial i is computed by a fresh optimiser seeded
+from (seed, i) that is given the finished trials in trial order, so it depends only on them; a
+tuning killed at any point and resumed (``--resume``) replays the finished rows into the
+optimiser, redoes the pending trials with their recorded options (continuing their run folders
+where they had checkpoints) and then suggests what an uninterrupted tuning would have. With a
+runner running several trials at once (`runner.concurrency` > 1) the trials in flight enter the
+optimiser as "constant liars" (the worst objective so far), so that each suggestion differs.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+import json
+import math
+import warnings
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from vistac.config import Config, param, to_dict
+from vistac.dataset.files import atomic_write_bytes, atomic_write_json
+from vistac.errors import UserError
+from vistac_learn.train.config import TrainCfg
+from vistac_learn.train.job import JobCfg, JobResult, LocalRunner
+from vistac_learn.train.loop import TrainingDiverged
+from vistac_learn.tune.space import SpaceCfg
+
+FIXED_COLUMNS = ("trial", "objective", "status", "best_epoch", "seconds", "run")
+
+
+@dataclass(frozen=True)
+class TuneCfg(Config):
+    """A tuning's own settings (the trained runs' come from the base `TrainCfg`)."""
+
+    out: str = param(help="tuning folder")
+    trials: int = param(20, ge=1, le=100_000, help="trials in total (a resumed tuning may "
+                        "raise it)")
+    seed: int = param(0, ge=0, lt=2**32, help="seed of the optimiser's suggestions")
+
+
+@dataclass(frozen=True)
+class TuneResult:
+    """The finished trials (rows of trials.csv) and the best one."""
+
+    rows: list[dict[str, Any]]
+    best: dict[str, Any] | None
+
+
+def suggest(space: SpaceCfg, finished: list[dict], running: list[dict], trial: int,
+            seed: int) -> dict[str, float | int]:
+    """Training options for trial `trial`.
+
+    Args:
+        space: The search space.
+        finished: Rows of finished trials (options and objective; NaN for a diverged trial).
+        running: Options of trials in flight (not finished).
+        trial: Index of the trial to suggest (0-based).
+        seed: The tuning's seed.
+
+    Returns:
+        Option name -> value.
+    """
+    from bayes_opt import BayesianOptimization
+
+    state = np.random.RandomState(np.random.SeedSequence([seed, trial]).generate_state(1)[0])
+    with warnings.catch_warnings():  # integer parameters are "experimental" in bayes_opt 3
+        warnings.simplefilter("ignore", UserWarning)
+        opt = BayesianOptimization(f=None, pbounds=space.pbounds(), random_state=state,
+                                   verbose=0, allow_duplicate_points=True)
+    ok = [r["objective"] for r in finished if math.isfinite(r["objective"])]
+    if trial < space.init_points or not ok:
+        return space.values(opt.suggest())  # an empty optimiser suggests a random point
+    worst = max(ok)
+    for r in sorted(finished, key=lambda r: r["trial"]):
+        target = r["objective"] if math.isfinite(r["objective"]) else worst
+        opt.register(params=space.coords(r), target=-target)
+    for values in running:  # constant liar: a trial in flight counts as the worst so far
+        opt.register(params=space.coords(values), target=-worst)
+    return space.values(opt.suggest())
+
+
+def _read_rows(path: Path, space: SpaceCfg) -> list[dict[str, Any]]:
+    if not path.exists():
+        return []
+    types = {d.name: (int if d.type == "int" else float) for d in space.dims}
+    rows = []
+    with path.open() as fh:
+        for r in csv.DictReader(fh):
+            row = {k: types[k](v) for k, v in r.items() if k in types}
+            row |= {"trial": int(r["trial"]), "objective": float(r["objective"]),
+                    "status": r["status"], "best_epoch": int(r["best_epoch"]),
+                    "seconds": float(r["seconds"]), "run": r["run"]}
+            rows.append(row)
+    return rows
+
+
+def _write_rows(path: Path, rows: list[dict[str, Any]], space: SpaceCfg) -> None:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=[FIXED_COLUMNS[0], *(d.name for d in space.dims),
+                                        *FIXED_COLUMNS[1:]], lineterminator="\n")
+    w.writeheader()
+    w.writerows(sorted(rows, key=lambda r: r["trial"]))
+    atomic_write_bytes(path, buf.getvalue().encode())
+
+
+def _check_folder(cfg: TuneCfg, meta: dict, resume: bool) -> None:
+    out = Path(cfg.out)
+    path = out / "config.json"
+    if not resume:
+        if path.exists():
+            raise UserError(f"--out {out}: already holds a tuning; pass --resume or choose "
+                            "another --out")
+        if out.exists() and any(out.iterdir()):
+            raise UserError(f"--out {out}: a folder that is not empty; choose another")
+        return
+    if not path.exists():
+        raise UserError(f"--out {out}: no tuning to resume (no config.json); drop --resume")
+    saved = json.loads(path.read_text())
+    for part in ("base", "space"):
+        if saved[part] != meta[part]:
+            diff = [k for k in meta[part] if saved[part].get(k) != meta[part][k]]
+            raise UserError(f"{path}: --resume with other {part} settings "
+                            f"({', '.join(diff) or part})")
+    if saved["tune"]["seed"] != cfg.seed:
+        raise UserError(f"{path}: --resume with another --tune-seed ({saved['tune']['seed']})")
+
+
+def run_tune(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool = False,
+             runner: Any = None, progress: bool = True) -> TuneResult:
+    """Tune `base`'s options over `space` for ``cfg.trials`` trials (or continue a tuning).
+
+    Args:
+        cfg: The tuning's settings.
+        base: The trials' run settings before the suggested options (its ``out`` is replaced
+            by the trial's folder).
+        space: The search space.
+        resume: Continue the tuning in ``cfg.out``.
+        runner: Runs job configs (``run(items)`` yields (position, result) as jobs finish;
+            ``concurrency`` jobs at once); default `LocalRunner`, one at a time here.
+        progress: Show a progress bar of trials.
+
+    Returns:
+        The finished trials and the best.
+
+    Raises:
+        UserError: a folder that holds another tuning, a resume with other settings, bad data.
+    """
+    from vistac_learn.tune.plots import plot_convergence
+
+    runner = runner or LocalRunner()
+    out = Path(cfg.out)
+    meta = {"tune": to_dict(cfg), "base": to_dict(base), "space": space.to_json()}
+    _check_folder(cfg, meta, resume)
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(out / "config.json", meta)
+    rows_path, pending_path = out / "trials.csv", out / "pending.json"
+    rows = _read_rows(rows_path, space)
+    done = {r["trial"] for r in rows}
+    pending = {int(k): v for k, v in json.loads(pending_path.read_text()).items()} \
+        if pending_path.exists() else {}
+    pending = {k: v for k, v in pending.items() if k not in done}
+    issued: list[int] = []
+
+    def job_cfg(trial: int, values: dict) -> JobCfg:
+        run = dataclasses.replace(base, out=str(out / "trials" / f"{trial:04d}"), **values)
+        return JobCfg(run, resume="auto")
+
+    def items() -> Iterator[JobCfg]:
+        for trial in sorted(pending):  # redo what a kill interrupted, with its options
+            issued.append(trial)
+            yield job_cfg(trial, pending[trial])
+        nxt = max([*done, *pending, -1]) + 1
+        while nxt < cfg.trials:
+            running = [pending[t] for t in pending]
+            values = suggest(space, rows, running, nxt, cfg.seed)
+            pending[nxt] = values
+            atomic_write_json(pending_path, {str(k): v for k, v in sorted(pending.items())})
+            issued.append(nxt)
+            yield job_cfg(nxt, values)
+            nxt += 1
+
+    bar = tqdm(total=max(cfg.trials, len(rows)), initial=len(rows), desc="tune",
+               unit="trial", disable=not progress)
+    best = _best(rows)
+    _write_outputs(out, rows, best, space, base, plot_convergence)
+    for position, result in runner.run(items()):
+        trial = issued[position]
+        rows.append(_row(trial, pending[trial], result))
+        _write_rows(rows_path, rows, space)
+        del pending[trial]
+        atomic_write_json(pending_path, {str(k): v for k, v in sorted(pending.items())})
+        best = _best(rows)
+        _write_outputs(out, rows, best, space, base, plot_convergence)
+        bar.update(1)
+        if best is not None:
+            bar.set_postfix(best=f"{best['objective']:.3g} deg (trial {best['trial']})")
+    bar.close()
+    return TuneResult(rows, best)
+
+
+def _row(trial: int, values: dict, result: JobResult | BaseException) -> dict[str, Any]:
+    row = {"trial": trial, **values}
+    if isinstance(result, TrainingDiverged):
+        return row | {"objective": math.nan, "status": "diverged", "best_epoch": 0,
+                      "seconds": 0.0, "run": ""}
+    return row | {"objective": result.objective, "status": "ok",
+                  "best_epoch": result.best_epoch, "seconds": result.seconds,
+                  "run": str(Path(result.run).name)}
+
+
+def _best(rows: list[dict]) -> dict | None:
+    ok = [r for r in rows if math.isfinite(r["objective"])]
+    return min(ok, key=lambda r: (r["objective"], r["trial"])) if ok else None
+
+
+def _write_outputs(out: Path, rows, best, space: SpaceCfg, base: TrainCfg, plot) -> None:
+    if best is not None:
+        values = {d.name: best[d.name] for d in space.dims}
+        atomic_write_json(out / "best.json", {
+            "trial": best["trial"], "objective": best["objective"],
+            "objective_name": "validation median angle to the cone mean (deg)",
+            "params": values, "best_epoch": best["best_epoch"],
+            "run": str(out / "trials" / best["run"]), "n_trials": len(rows),
+            "train": to_dict(dataclasses.replace(base, out=str(out / "trials" / best["run"]),
+                                                 **values))})
+    if rows:
+        plot(sorted(rows, key=lambda r: r["trial"]), out / "convergence.png")
