@@ -14,8 +14,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 os.environ.setdefault("PYOPENGL_PLATFORM", os.environ["MUJOCO_GL"])
 
 import mujoco  # noqa: E402
+from mujoco.rendering.classic import gl_context  # noqa: E402  (one GL context per process)
 
 _LOG = logging.getLogger("vistac_sim.mujoco")
 mujoco.set_mju_user_warning(lambda msg: _LOG.debug("MuJoCo warning: %s", msg))
 
-__all__ = ["mujoco"]
+__all__ = ["gl_context", "mujoco"]

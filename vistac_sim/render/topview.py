@@ -7,10 +7,9 @@ World -> pixel (camera centred on the world origin, looking straight down):
 from __future__ import annotations
 
 import numpy as np
-from mujoco.rendering.classic import gl_context
 
 from vistac.dataset import FINGERS
-from vistac_sim.mj import mujoco
+from vistac_sim.mj import gl_context, mujoco
 from vistac_sim.render.boxes import boxes_from_outlines
 from vistac_sim.render.config import RenderCfg
 from vistac_sim.scene.ids import OBJECT_GROUP_COLLISION, SceneIds
