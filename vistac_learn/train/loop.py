@@ -121,13 +121,13 @@ def _check_resume(cfg: TrainCfg, out: Path, fingerprint: str) -> None:
     if diff:
         raise UserError(f"{out / 'config.json'}: --resume with different settings "
                         f"({', '.join(diff)})")
+    if saved["dataset"]["fingerprint"] != fingerprint:
+        raise UserError(f"--data {cfg.data}: not the dataset this run started on (its "
+                        f"fingerprint differs from {saved['dataset']['path']}'s)")
     planned = saved["train"].get("epochs")
     if cfg.schedule == "onecycle" and planned != cfg.epochs:
         raise UserError(f"--epochs {cfg.epochs}: the run's one-cycle schedule was planned for "
                         f"{planned} epochs; resume with --epochs {planned}")
-    if saved["dataset"]["fingerprint"] != fingerprint:
-        raise UserError(f"--data {cfg.data}: not the dataset this run started on (its "
-                        f"fingerprint differs from {saved['dataset']['path']}'s)")
 
 
 def _optimizer(cfg: TrainCfg, model: torch.nn.Module, steps: int):
@@ -253,7 +253,7 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
                 opt.zero_grad(set_to_none=True)
                 loss = masked_mse(apply_model(model, batch, device), y, batch["found"].to(device))
                 if not torch.isfinite(loss):
-                    raise TrainingDiverged(epoch + 1, f"training loss (batch {b + 1})",
+                    raise TrainingDiverged(epoch + 1, "training loss",
                                            float(loss.detach()), cfg.lr)
                 loss.backward()
                 opt.step()
