@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import hashlib
+import io
 import os
 from pathlib import Path
 
 import numpy as np
 import trimesh
+
+from vistac.dataset.files import atomic_write_bytes, remove_stale_temporaries
 
 
 def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
@@ -29,11 +32,12 @@ def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
     parts = coacd.run_coacd(coacd.Mesh(mesh.vertices, mesh.faces), threshold=threshold, seed=0)
     pieces = [trimesh.Trimesh(np.asarray(v), np.asarray(f)).convex_hull for v, f in parts]
     cache.parent.mkdir(parents=True, exist_ok=True)
-    tmp = cache.with_suffix(f".{os.getpid()}.tmp.npz")
+    remove_stale_temporaries(cache.parent)  # a killed writer's leftovers
     arrays = {f"v{i}": p.vertices for i, p in enumerate(pieces)}
     arrays.update({f"f{i}": p.faces for i, p in enumerate(pieces)})
-    np.savez(tmp, n=len(pieces), **arrays)
-    os.replace(tmp, cache)
+    buf = io.BytesIO()
+    np.savez(buf, n=len(pieces), **arrays)
+    atomic_write_bytes(cache, buf.getvalue())
     return pieces
 
 
