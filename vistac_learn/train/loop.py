@@ -37,7 +37,7 @@ import torch
 from tqdm import tqdm
 
 from vistac.dataset import open_dataset
-from vistac.dataset.files import atomic_write_json
+from vistac.dataset.files import atomic_write_json, remove_stale_temporaries
 from vistac.errors import UserError
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import fingers_of
@@ -46,7 +46,6 @@ from vistac_learn.models.tipnet import apply_model
 from vistac_learn.train.checkpoints import (
     atomic_save,
     init_from_run,
-    remove_stale_temporaries,
     trainable_parameters,
 )
 from vistac_learn.train.config import (

@@ -8,6 +8,7 @@ can refuse to continue a run made with other settings.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,6 +20,8 @@ from vistac_sim.physics.config import PhysicsCfg
 from vistac_sim.recording.config import RecordingCfg
 from vistac_sim.render.config import RenderCfg
 from vistac_sim.scene.config import HandCfg
+
+MIN_TIP_PIXELS = 3  # a fingertip drawn narrower cannot be told from noise by the tip locator
 
 
 @dataclass
@@ -60,6 +63,14 @@ class GenerateCfg(Config):
                 f"MAX {self.objects.footprint[1]:g} m does not fit the view: with both "
                 f"fingertips it must be <= {room:.4g} m (view_extent {self.render.view_extent:g}"
                 f" m - 4 x tip_radius)"))
+
+        tip_px = 2 * self.hand.tip_radius / self.render.view_extent * self.render.image_size
+        if tip_px < MIN_TIP_PIXELS:
+            need = math.ceil(MIN_TIP_PIXELS * self.render.view_extent / (2 * self.hand.tip_radius))
+            raise ConfigError("render.image_size", (
+                f"{self.render.image_size} px draws a fingertip {tip_px:.1f} px across; the "
+                f"overlay needs >= {MIN_TIP_PIXELS} px to be found: use >= {need} px (or a "
+                f"smaller view_extent)"))
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-able dict of the whole tree (tuples become lists)."""
