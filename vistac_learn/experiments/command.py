@@ -47,7 +47,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         "split); per fraction of --real's training split and seed: one trained from scratch "
         "and the sim model fine-tuned (--init) on the same subset. All scored on --real's test "
         "split; mean +- std over seeds; the report states the domain gap.",
-        formatter_class=HelpFormatter)
+        formatter_class=HelpFormatter, allow_abbrev=False)
     s.add_argument("--sim", required=True, help="simulated dataset (pretraining)")
     s.add_argument("--real", required=True, help="real (target-domain) dataset")
     add_options(s, Sim2RealCfg, ("fractions", "seeds", "freeze"))
@@ -59,7 +59,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         "(--noise of `vistac generate`) at each level and seed, reproducibly, without "
         "simulating again; one model per level and seed, scored on the test split against the "
         "clean labels and the noisy cones.",
-        formatter_class=HelpFormatter)
+        formatter_class=HelpFormatter, allow_abbrev=False)
     n.add_argument("--data", required=True, help="dataset with clean forces")
     add_options(n, LabelNoiseCfg, ("levels", "seeds"))
     _common(n)

@@ -266,7 +266,8 @@ def finding(summary: list[dict]) -> str:
     a, b = lo["clean_angle_deg_mean"], hi["clean_angle_deg_mean"]
     means = [s["clean_angle_deg_mean"] for s in done]
     steady = all(y >= x for x, y in zip(means, means[1:], strict=False))
-    shape = "growing at every step" if steady else "not at every step (within the seed spread)"
+    shape = ("growing at every step" if steady else "not monotone over the levels (compare "
+             "the steps with the spread over seeds)")
     return (f"**Finding**: from noise level {lo['level']:g} to {hi['level']:g} the median angle "
             f"to the clean label goes from {C.pm(a, lo['clean_angle_deg_std'])} to "
             f"{C.pm(b, hi['clean_angle_deg_std'])} deg ({b - a:+.1f} deg, "

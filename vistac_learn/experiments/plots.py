@@ -46,6 +46,10 @@ def plot_sim2real(summary: list[dict], path: Path) -> None:
         ax.axhline(ys[0], color="tab:red", ls="--", label="sim only (zero-shot)")
         ax.axhspan(ys[0] - es[0], ys[0] + es[0], color="tab:red", alpha=0.12)
     ax.set_xscale("log")
+    ticks = sorted({s["fraction"] for s in summary if s["arm"] != "sim-only"})
+    if ticks:
+        ax.minorticks_off()
+        ax.set_xticks(ticks, [f"{t:g}" for t in ticks])
     ax.set_xlabel("fraction of the real training split")
     ax.set_ylabel("real test: median angle to cone mean (deg)")
     ax.set_title("sim-to-real: mean ± std over seeds", fontsize=10)
