@@ -127,17 +127,10 @@ def prepare_data(cfg: LabelNoiseCfg) -> dict[tuple[float, int], float]:
         (level, seed) -> median angle between the noisy and the clean test labels (deg).
 
     Raises:
-        UserError: a dataset without clean forces.
+        UserError: an unreadable dataset.
     """
     source = Path(cfg.data)
     tables = open_dataset(source)
-    cols = [c for f in FINGERS for c in clean_force_columns(f)]
-    missing = [c for c in cols if c not in tables.configs]
-    if missing:
-        raise UserError(f"--data {source}: {CONFIGS} has no clean forces ({missing[0]}, ...); "
-                        "label noise is drawn from the clean forces of a generated dataset")
-    if not np.isfinite(tables.configs[cols].to_numpy(float)).all():
-        raise UserError(f"--data {source}: {CONFIGS}: non-finite clean forces")
     data = Path(cfg.out) / "data"
     clean_presses = tables.presses[tables.presses["repeat"] == tables.presses["repeat"].min()]
     derive_dataset(source, data / "clean", noisy_presses(tables.configs, clean_presses, 0.0, 0),
@@ -282,10 +275,20 @@ def resolved(cfg: LabelNoiseCfg) -> LabelNoiseCfg:
 
 
 def check_inputs(cfg: LabelNoiseCfg) -> None:
-    """The dataset is complete before any work (raises `UserError` naming --data)."""
-    from vistac.dataset import read_manifest
+    """Before any work: the dataset is complete and has finite clean forces.
 
+    Raises:
+        UserError: naming --data.
+    """
+    source = Path(cfg.data)
     try:
-        read_manifest(Path(cfg.data))
+        tables = open_dataset(source)
     except UserError as exc:
         raise UserError(f"--data {exc}") from None
+    cols = [c for f in FINGERS for c in clean_force_columns(f)]
+    missing = [c for c in cols if c not in tables.configs]
+    if missing:
+        raise UserError(f"--data {source}: {CONFIGS} has no clean forces ({missing[0]}, ...); "
+                        "label noise is drawn from the clean forces of a generated dataset")
+    if not np.isfinite(tables.configs[cols].to_numpy(float)).all():
+        raise UserError(f"--data {source}: {CONFIGS}: non-finite clean forces")
