@@ -133,9 +133,11 @@ def _optimizer(cfg: TrainCfg, model: torch.nn.Module, steps: int):
     params = trainable_parameters(model)
     kind = torch.optim.AdamW if cfg.optimizer == "adamw" else torch.optim.Adam
     opt = kind(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
-    if cfg.schedule == "onecycle":
+    if cfg.schedule == "onecycle" and steps >= 3:
+        # torch needs a warm-up of more than one step (it divides by its length): a quarter of
+        # the steps, at least 1.5 (unchanged from 6 steps on); below 3 steps, a constant lr
         sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=cfg.lr, total_steps=steps,
-                                                    pct_start=0.25)
+                                                    pct_start=max(0.25, 1.5 / steps))
     else:
         sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda _: 1.0)
     return opt, sched
