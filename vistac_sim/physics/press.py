@@ -84,7 +84,7 @@ class Press:
                                                              grasp.approach[k, 0]))
             d.ctrl[ids.actuator[f]] = h.press_force
 
-    def _release(self) -> None:
+    def release(self) -> None:
         """End of the approach: friction on, lateral springs released, unloaded where they are."""
         m, d = self.model, self.data
         m.opt.enableflags &= ~_OVERRIDE
@@ -104,7 +104,7 @@ class Press:
         if d.ncon and (d.contact.dist[: d.ncon] < 0).any():
             raise RejectedSample("start_penetrates", "a finger starts inside the object")
         mujoco.mj_step(m, d, nstep=phys.approach_steps)
-        self._release()
+        self.release()
         mujoco.mj_step(m, d, nstep=phys.settle_steps)
         if d.warning.number.any():
             raise RejectedSample("mujoco_warning", _warnings(d))
