@@ -41,3 +41,38 @@ def test_hard_case_expectations():
 def test_thin_wall_outline_has_the_wall_it_asks_for():
     poly = thin_wall_u(0.06, 0.001)
     assert poly.area == pytest.approx(0.001 * (0.06 + 2 * 0.048 - 2 * 0.001), rel=1e-9)
+
+
+@pytest.mark.parametrize("friction", [0.3, 0.8])
+def test_stick_and_slip_at_the_cone_edge(friction):
+    cfg = GenerateCfg()
+    cfg.physics.friction = friction
+    cone = np.degrees(np.arctan(friction))
+    stick = run_case("stick_inside_cone_edge", cfg)
+    slip = run_case("slip_past_cone_edge", cfg)
+    assert stick.accepted and slip.accepted
+    assert stick.angle_to_normal_deg[0] == pytest.approx(cone - 2.0, abs=1.0)  # follows the push
+    assert slip.angle_to_normal_deg[0] == pytest.approx(cone, abs=1.0)  # on the cone's edge
+    # The thumb pushes along its normal in both: no tangential force.
+    assert np.all(np.array([stick.angle_to_normal_deg[1], slip.angle_to_normal_deg[1]]) < 0.5)
+
+
+@pytest.mark.parametrize("friction", [0.0, 0.8])
+def test_near_zero_normal_force_keeps_its_direction(friction):
+    cfg = GenerateCfg()
+    cfg.physics.friction = friction
+    out = run_case("near_zero_normal_force", cfg)
+    assert out.accepted and np.isfinite(out.force).all()
+    assert out.force[0, 2] == pytest.approx(-0.01, rel=1e-2)  # the drive's 10 mN, along the push
+    expected = min(20.0, np.degrees(np.arctan(friction)))
+    assert out.angle_to_normal_deg[0] == pytest.approx(expected, abs=1.0)
+
+
+def test_grazing_contact_with_friction_slips_to_the_cone_edge():
+    cfg = GenerateCfg()
+    cfg.physics.friction = 0.8
+    out = run_case("grazing_70deg_friction", cfg)
+    assert out.accepted
+    assert out.angle_to_normal_deg[0] == pytest.approx(np.degrees(np.arctan(0.8)), abs=1.0)
+    cfg.physics.friction = 0.0
+    assert run_case("grazing_70deg_friction", cfg).reason == "no_contact"
