@@ -9,14 +9,19 @@ from vistac.config import Config, ConfigError, param
 
 @dataclass
 class PhysicsCfg(Config):
-    """MuJoCo settings of the press."""
+    """MuJoCo settings of the press: contacts, friction, and the two phases of a press
+    (`vistac_sim.physics.press`)."""
 
-    friction: float = param(0.6, ge=0,
-                            help="sliding friction coefficient (0: frictionless)")
+    friction: float = param(0.8, ge=0,
+                            help="sliding friction coefficient, pad on object (0: "
+                            "frictionless). Default 0.8: an elastomer fingertip pad on dry, "
+                            "hard plastic, wood or metal (handbook values ~0.5-1.0); see the "
+                            'README section "Friction"')
     timestep: float = param(0.002, gt=0, le=0.1, help="s per MuJoCo step")
     approach_steps: int = param(50, ge=1, le=1_000_000,
-                                help="steps of the approach, with the tip's lateral springs "
-                                "held: the pad reaches the surface and its normal force settles")
+                                help="steps of the approach, frictionless with the tip's "
+                                "lateral springs held: the pad lands and its normal force "
+                                "settles")
     settle_steps: int = param(100, ge=1, le=1_000_000,
                               help="steps after the springs are released: a pad pushed outside "
                               "the friction cone slips until its force lies on the cone's edge")
