@@ -6,6 +6,8 @@ from hard_cases import CASES, KNOWN_REASONS, run_case, thin_wall_u
 
 from vistac_sim.generate.config import GenerateCfg
 
+SLID_OFF = {"no_contact", "not_settled"}  # a pad sliding along the face: out of travel or moving
+
 
 @pytest.mark.parametrize("friction", [0.0, 0.6])
 @pytest.mark.parametrize("name", sorted(CASES))
@@ -32,10 +34,10 @@ def test_hard_case_expectations():
         out = run_case(name, cfg)  # corners and tiny curved objects: the normal-cone member
         assert out.accepted and np.all(out.angle_to_normal_deg < 0.5), name
     # Pushed 85 degrees off the normal, a pad slides along the face (frictionless, or with any
-    # friction below tan 85 deg) until its push slide runs out of travel: no contact to label.
+    # friction below tan 85 deg) until its push slide runs out of travel: nothing to label.
     for friction in (0.0, 0.8):
         cfg.physics.friction = friction
-        assert run_case("grazing_85deg", cfg).reason == "no_contact"
+        assert run_case("grazing_85deg", cfg).reason in SLID_OFF
 
 
 def test_thin_wall_outline_has_the_wall_it_asks_for():
@@ -75,4 +77,4 @@ def test_grazing_contact_with_friction_slips_to_the_cone_edge():
     assert out.accepted
     assert out.angle_to_normal_deg[0] == pytest.approx(np.degrees(np.arctan(0.8)), abs=1.0)
     cfg.physics.friction = 0.0
-    assert run_case("grazing_70deg_friction", cfg).reason == "no_contact"
+    assert run_case("grazing_70deg_friction", cfg).reason in SLID_OFF

@@ -18,11 +18,11 @@ class PhysicsCfg(Config):
                             "hard plastic, wood or metal (handbook values ~0.5-1.0); see the "
                             'README section "Friction"')
     timestep: float = param(0.002, gt=0, le=0.1, help="s per MuJoCo step")
-    approach_steps: int = param(50, ge=1, le=1_000_000,
+    approach_steps: int = param(30, ge=1, le=1_000_000,
                                 help="steps of the approach, frictionless with the tip's "
                                 "lateral springs held: the pad lands and its normal force "
                                 "settles")
-    settle_steps: int = param(100, ge=1, le=1_000_000,
+    settle_steps: int = param(60, ge=1, le=1_000_000,
                               help="steps after the springs are released: a pad pushed outside "
                               "the friction cone slips until its force lies on the cone's edge")
     noslip_iterations: int = param(10, ge=0, le=1000,
