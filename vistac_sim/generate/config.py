@@ -30,10 +30,12 @@ class GraspCfg(Config):
 
     approach_spread_deg: float = param(
         20.0, ge=0, lt=90, flag="--approach-spread",
-        help="max degrees of the approach direction off the surface normal")
-    min_opposition_deg: float = param(90.0, ge=0, le=180,
-                                      help="min angle between index and thumb approach "
-                                      "directions")
+        help="max degrees of the hand's closing direction off the index target's surface "
+        "normal (the thumb closes along the same axis, wherever it meets the object)")
+    max_push_angle_deg: float = param(
+        50.0, ge=0, lt=90,
+        help="max degrees between the closing axis and the thumb target's surface normal "
+        "(further off, a pad slides away along the surface)")
     max_redraws: int = param(60, ge=0, le=100_000,
                              help="per configuration, before the run fails loudly")
 
