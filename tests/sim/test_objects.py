@@ -42,7 +42,7 @@ def bad_meshes(tmp_path):
 
 
 @pytest.mark.parametrize("kind, reason", [
-    ("empty", ""), ("points", "no triangles"), ("soup", "not a closed surface"),
+    ("empty", ""), ("points", "no triangles"), ("soup", "not a surface"),
     ("nan", "NaN"), ("flat", "zero volume"), ("garbage", "cannot read"),
 ])
 def test_bad_mesh_error_names_file_and_reason(bad_meshes, kind, reason):

@@ -90,6 +90,10 @@ def repair_mesh(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh") -> 
     ext = mesh.extents if len(mesh.faces) else np.zeros(3)
     if len(mesh.faces) == 0 or ext.min() <= 1e-9 * max(ext.max(), 1e-30):
         raise UserError(f"{name}: zero volume (the mesh is flat or degenerate)")
+    shared = float(np.mean(np.bincount(mesh.edges_unique_inverse) == 2))
+    if shared < MIN_SHARED_EDGES:
+        raise UserError(f"{name}: not a surface (triangle soup: only {100 * shared:.0f} % of "
+                        "edges join two faces)")
     if not mesh.is_watertight:
         filled = _fill_holes(mesh)
         if filled is not None:
@@ -103,10 +107,6 @@ def repair_mesh(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh") -> 
         if abs(mesh.volume) <= 1e-9 * ext.prod():
             raise UserError(f"{name}: zero volume (the mesh encloses no space)")
     else:
-        shared = float(np.mean(np.bincount(mesh.edges_unique_inverse) == 2))
-        if shared < MIN_SHARED_EDGES:
-            raise UserError(f"{name}: not a surface (triangle soup: only {100 * shared:.0f} % of "
-                            "edges join two faces)")
         _orient_outwards(mesh)
         notes.append("open surface: collided through its convex decomposition")
     if not np.array_equal(before, mesh.faces):
