@@ -130,7 +130,7 @@ def run_one(path: Path, n: int, work: Path) -> dict:
                                        2)
         obj = manifest["per_object"][0]
         row.update(status=obj["status"], reason=obj.get("reason", ""),
-                   configurations=manifest["counts"]["configurations"],
+                   configurations=manifest["counts"]["configs"],
                    presses=manifest["counts"]["presses"],
                    rejections=json.dumps(obj["rejections"]))
     except UserError as exc:
@@ -193,7 +193,7 @@ def write_report(path: Path, table: pd.DataFrame, manifest: dict, args, folder_c
         _markdown(table.drop(columns=["cpu_s"])),
         "",
         f"Folder run over all {len(table)} files ({args.folder_n} configurations asked, "
-        f"{manifest['counts']['configurations']} delivered, {folder_cpu:.0f} s CPU):",
+        f"{manifest['counts']['configs']} delivered, {folder_cpu:.0f} s CPU):",
         "",
         _markdown(folder.reindex(columns=["object_id", "path", "status", "reason",
                                           "configurations", "presses", "rejections"])
