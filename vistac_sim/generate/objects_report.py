@@ -25,17 +25,23 @@ from vistac_sim.objects.library import ObjectSpec, build_object
 
 
 def screen_objects(specs: list[ObjectSpec], cfg: GenerateCfg, progress: bool = False
-                   ) -> tuple[list[ObjectSpec], list[dict]]:
+                   ) -> tuple[list[ObjectSpec], list[dict], dict[str, list[str]]]:
     """Keep the objects that give a valid grasp; the others are returned with their reasons.
+
+    Returns:
+        The kept specs, the skipped objects (`object_id`, `path`, `reason`, `rejections`) and
+        the repairs made to each mesh (by object id).
 
     Raises:
         UserError: with `objects.strict`, the first object skipped (named with its file); or
             when no object remains.
     """
-    kept, skipped = [], []
+    kept, skipped, repairs = [], [], {}
     for k, spec in enumerate(tqdm(specs, desc="check objects", unit="obj", disable=not progress)):
         rng = np.random.default_rng([cfg.seed, k, 0x5C4EE7])
-        reason, rejections = _screen_one(spec, cfg, rng)
+        reason, rejections, notes = _screen_one(spec, cfg, rng)
+        if notes:
+            repairs[spec.object_id] = notes
         if reason is None:
             kept.append(spec)
             continue
@@ -47,31 +53,33 @@ def screen_objects(specs: list[ObjectSpec], cfg: GenerateCfg, progress: bool = F
     if not kept:
         raise UserError("no object gave a valid grasp: " + "; ".join(
             f"{s['object_id']}: {s['reason']}" for s in skipped))
-    return kept, skipped
+    return kept, skipped, repairs
 
 
 def _screen_one(spec: ObjectSpec, cfg: GenerateCfg, rng: np.random.Generator
-                ) -> tuple[str | None, dict[str, int]]:
+                ) -> tuple[str | None, dict[str, int], list[str]]:
     try:
         obj = build_object(spec, cfg.hand.height, cfg.objects.min_wall, default_cache_dir(),
                            cfg.objects.min_height)
         scene = ObjectScene(obj, cfg, render=False)
     except UserError as exc:
-        return str(exc), {}
+        return str(exc), {}, []
     except Exception as exc:  # one object must never abort a run
-        return f"cannot build the object ({type(exc).__name__}: {exc})", {}
+        return f"cannot build the object ({type(exc).__name__}: {exc})", {}, []
+    notes = list(obj.mesh.metadata.get("repairs", []))
     try:
         draw_grasp(scene, rng, cfg)
     except NoValidGrasp as exc:
         counts = dict(sorted(exc.redraws.items()))
-        return f"no valid grasp in {sum(counts.values())} draws", counts
+        return f"no valid grasp in {sum(counts.values())} draws", counts, notes
     finally:
         scene.close()
-    return None, {}
+    return None, {}, notes
 
 
 def object_summary(configs: pd.DataFrame, presses: pd.DataFrame, objects: list[dict],
-                   skipped: list[dict]) -> list[dict]:
+                   skipped: list[dict], repairs: dict[str, list[str]] | None = None
+                   ) -> list[dict]:
     """Per object: status, configurations and presses accepted, rejected draws by reason.
 
     Args:
@@ -80,7 +88,9 @@ def object_summary(configs: pd.DataFrame, presses: pd.DataFrame, objects: list[d
         objects: the specs of the objects used (`object_id`, `path`).
         skipped: objects and meshes skipped before the run (`object_id` or `path`, `reason`,
             optional `rejections`).
+        repairs: what was repaired in each mesh, by object id.
     """
+    repairs = repairs or {}
     per_config = presses.groupby("config_id").size()
     n_presses = configs["config_id"].map(per_config).fillna(0).astype(int)
     rejections: dict[str, Counter] = {o["object_id"]: Counter() for o in objects}
@@ -96,11 +106,13 @@ def object_summary(configs: pd.DataFrame, presses: pd.DataFrame, objects: list[d
         mine = configs["object_id"] == o["object_id"]
         rows.append({"object_id": o["object_id"], "path": o.get("path", ""), "status": "used",
                      "configurations": int(mine.sum()), "presses": int(n_presses[mine].sum()),
-                     "rejections": dict(sorted(rejections[o["object_id"]].items()))})
+                     "rejections": dict(sorted(rejections[o["object_id"]].items())),
+                     "repairs": repairs.get(o["object_id"], [])})
     for s in skipped:
         rows.append({"object_id": s.get("object_id", ""), "path": s.get("path", ""),
                      "status": "skipped", "reason": s["reason"], "configurations": 0,
-                     "presses": 0, "rejections": s.get("rejections", {})})
+                     "presses": 0, "rejections": s.get("rejections", {}),
+                     "repairs": repairs.get(s.get("object_id", ""), [])})
     return rows
 
 

@@ -165,7 +165,7 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
     preflight(engine)
     workers = min(workers or mp.cpu_count(), mp.cpu_count())
     specs, skipped = object_specs(cfg, cfg.seed)
-    specs, unusable = screen_objects(specs, cfg, progress)
+    specs, unusable, repairs = screen_objects(specs, cfg, progress)
     run_state = {"config": cfg.to_dict(), "objects": [s.__dict__ for s in specs]}
     done = shards.start_run(out, run_state, resume)
     chunks = plan_chunks(cfg.n, cfg.seed, len(specs), cfg.chunk_size)
@@ -191,6 +191,7 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
         "objects": [s.__dict__ for s in specs],
         "skipped_meshes": skipped,
         "skipped_objects": unusable,
+        "mesh_repairs": repairs,
         "render": {"image_size": cfg.render.image_size, "view_extent_m": cfg.render.view_extent,
                    "px_per_m": cfg.render.image_size / cfg.render.view_extent,
                    "camera_xy": [0.0, 0.0]},

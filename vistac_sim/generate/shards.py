@@ -124,7 +124,8 @@ def finalize(out: Path, n_chunks: int, manifest: dict, split_by: str, fractions,
 
     per_object = object_summary(cfg_df, prs_df, manifest.get("objects", []),
                                 manifest.get("skipped_meshes", [])
-                                + manifest.get("skipped_objects", []))
+                                + manifest.get("skipped_objects", []),
+                                manifest.get("mesh_repairs"))
     manifest = {**manifest, "format_version": FORMAT_VERSION, "complete": True, "counts": counts,
                 "redraws": {"total": int(cfg_df["redraws"].sum()),
                             "by_reason": dict(sorted(reasons.items()))},
