@@ -152,12 +152,15 @@ def test_mesh_that_stays_open_is_collided_through_its_decomposition(tmp_path, mo
     mesh = meshes.load_mesh(tmp_path / "finned.obj")
     assert not mesh.is_watertight
     assert any("convex decomposition" in note for note in mesh.metadata["repairs"])
-    pieces = decomposition.convex_decomposition(meshes.scale_to_footprint(mesh, 0.05), tmp_path)
-    assert pieces and all(p.is_convex and p.volume > 0 for p in pieces)
     monkeypatch.setenv("VISTAC_CACHE", str(tmp_path / "cache"))
     rc, _ = _run(["--n", "2", "--repeats", "1", "--objects", tmp_path / "finned.obj", "--out",
                   tmp_path / "ds"])
     assert rc == 0
+    manifest = json.loads((tmp_path / "ds" / "manifest.json").read_text())
+    assert manifest["counts"]["configs"] == 2
+    assert any("convex decomposition" in n for n in manifest["per_object"][0]["repairs"])
+    cached = list((tmp_path / "cache" / "coacd").glob("*.npz"))  # CoACD ran on the open mesh
+    assert len(cached) == 1
 
 
 def test_open_cup_generates_labels(tmp_path, monkeypatch):
