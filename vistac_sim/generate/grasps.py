@@ -7,6 +7,11 @@ along the same axis, on the outline where that axis leaves the object. The thumb
 angle is thus whatever the shape gives there (up to `max_push_angle_deg`). The whole finger (tip
 and shaft) must fit beside the object in its start pose, and the two fingers must not overlap.
 What cannot be met is a `RejectedSample`.
+
+Grasps are drawn against the collision geometry that MuJoCo simulates: the outline is the section
+of the object's convex collision pieces at the press height, and a finger fits beside an object
+whose walls are not vertical (a mesh) only if, at several heights across the tip, the pieces'
+section keeps clear of the tip's width there, so that no start penetrates.
 """
 
 from __future__ import annotations
@@ -18,22 +23,53 @@ import shapely
 from shapely.geometry import LineString, Polygon
 
 from vistac.dataset import FINGERS
+from vistac_sim.objects.decomposition import pieces_section
 from vistac_sim.objects.outlines import boundary_arrays
 from vistac_sim.physics.checks import RejectedSample
 from vistac_sim.scene.grasp import Grasp, to_world
 
 if TYPE_CHECKING:
     from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.objects.library import SceneObject
+
+# Heights across the tip (fractions of its radius above and below the axis) where the collision
+# pieces of a mesh are sliced for the "finger fits" check.
+CLEARANCE_LEVELS = (-0.95, -0.8, -0.5, 0.5, 0.8, 0.95)
 
 
 class OutlineSampler:
     """Draws grasps on one object's outline (built once per object, used for every grasp)."""
 
-    def __init__(self, section: Polygon, cfg: GenerateCfg):
+    def __init__(self, section: Polygon, cfg: GenerateCfg,
+                 clearance: tuple[tuple[object, float], ...] = ()):
+        """Args:
+            section: outline the targets lie on (at the press height).
+            cfg: the run's config.
+            clearance: more (geometry, width) pairs: the finger axis must stay farther than
+                width from each geometry (sections of the pieces above and below the axis).
+        """
         self.section = section
         self.cfg = cfg
         self.p0, self.p1, self.normals, self.cum = boundary_arrays(section)
-        shapely.prepare(section)
+        self.keep_out = ((section, cfg.hand.tip_radius), *clearance)
+        for geom, _ in self.keep_out:
+            shapely.prepare(geom)
+
+    @classmethod
+    def of(cls, obj: SceneObject, cfg: GenerateCfg) -> OutlineSampler:
+        """The sampler of an object, with the clearance levels its collision pieces need.
+
+        `cfg.hand.height` is the press height of this object.
+        """
+        if obj.vertical_walls:
+            return cls(obj.section, cfg)
+        r, z = cfg.hand.tip_radius, cfg.hand.height
+        levels = []
+        for f in CLEARANCE_LEVELS:
+            geom = pieces_section(obj.pieces, z + f * r)
+            if not geom.is_empty:
+                levels.append((geom, r * float(np.sqrt(1 - f * f))))
+        return cls(obj.section, cfg, tuple(levels))
 
     def _points(self, rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray]:
         s = rng.uniform(0, self.cum[-1], k)
@@ -60,7 +96,7 @@ class OutlineSampler:
         return LineString([start, back])
 
     def _inside(self, axis: LineString) -> bool:
-        return bool(shapely.dwithin(self.section, axis, self.cfg.hand.tip_radius))
+        return any(shapely.dwithin(geom, axis, width) for geom, width in self.keep_out)
 
     def _overlap(self, a: LineString, b: LineString) -> bool:
         return bool(shapely.dwithin(a, b, 2 * self.cfg.hand.tip_radius))
