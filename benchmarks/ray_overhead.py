@@ -1,0 +1,361 @@
+"""What Ray costs on this machine, and what 8 machines would give: `vistac generate` local vs Ray.
+
+Measured, on one machine, with one local Ray instance of `--workers` CPUs kept running for the
+whole benchmark (a warm cluster, as a user joining one with ``--ray-address`` sees it):
+
+1. **Generate throughput**: `--repeats` interleaved pairs of `generate(n, workers)` with the
+   local engine (a process pool) and the Ray engine (one task per chunk), each pair on its own
+   seed (so no run reuses another's scenes). Wall time and CPU time (user + system): the local
+   run's own process and its waited-for pool; the Ray run's driver plus every process of the Ray
+   instance (read from ``/proc``), split into driver, Ray workers and Ray's daemons.
+2. **Per-task overhead**: no-op Ray tasks, (a) submitted all at once, (b) one round trip at a
+   time, (c) through `RayRunner` as generate uses it (at most `workers` in flight): wall and CPU
+   per task; and the cold start of a local instance (start, first task, shutdown).
+3. **Per-chunk cost** of generate on Ray: the worker CPU per chunk (making it), the driver CPU
+   per chunk (receiving and committing it: images and shards are written by the driver) and the
+   bytes it ships.
+4. **On paper, 8 machines**: chunks per second = the least of what the workers make
+   (machines x cores / worker CPU per chunk), what one driver commits (1 / driver CPU per
+   chunk) and what its network link carries (bandwidth / bytes per chunk).
+
+Writes ``results/ray_overhead.csv`` (group, quantity, value, unit) and ``ray_overhead.md``.
+
+Usage:
+    python benchmarks/ray_overhead.py --n 1000 --workers 2 --repeats 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import os
+import resource
+import shutil
+import statistics
+import sys
+import time
+from pathlib import Path
+
+RESULTS = Path(__file__).parent / "results"
+TICK = os.sysconf("SC_CLK_TCK")
+
+
+# ------------------------------------------------------------------------------- CPU clocks
+def _proc_tree() -> dict[int, tuple[str, float]]:
+    """pid -> (name, CPU seconds so far) of every live descendant of this process."""
+    info: dict[int, tuple[int, str, float]] = {}
+    for entry in os.scandir("/proc"):
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = Path(entry.path, "stat").read_text()
+        except OSError:
+            continue
+        name, rest = stat[stat.index("(") + 1:stat.rindex(")")], stat[stat.rindex(")") + 2:]
+        fields = rest.split()
+        info[int(entry.name)] = (int(fields[1]), name, (int(fields[11]) + int(fields[12])) / TICK)
+    me, tree, frontier = os.getpid(), {}, [os.getpid()]
+    while frontier:
+        parent = frontier.pop()
+        for pid, (ppid, name, cpu) in info.items():
+            if ppid == parent and pid != me and pid not in tree:
+                tree[pid] = (name, cpu)
+                frontier.append(pid)
+    return tree
+
+
+def _own_cpu() -> tuple[float, float]:
+    """CPU seconds of this process and of its waited-for children."""
+    s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return s.ru_utime + s.ru_stime, c.ru_utime + c.ru_stime
+
+
+class Clock:
+    """Wall and CPU time of a block: this process, its waited children, its live descendants
+    (split into Ray workers, named ``ray::...``, and everything else)."""
+
+    def __enter__(self) -> Clock:
+        self._tree, self._own, self._t = _proc_tree(), _own_cpu(), time.perf_counter()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.wall = time.perf_counter() - self._t
+        own = _own_cpu()
+        self.driver = own[0] - self._own[0]
+        self.children = own[1] - self._own[1]
+        self.workers = self.daemons = 0.0
+        for pid, (name, cpu) in _proc_tree().items():
+            delta = cpu - self._tree.get(pid, (name, 0.0))[1]
+            if name.startswith("ray::"):
+                self.workers += delta
+            else:
+                self.daemons += delta
+
+    @property
+    def cpu(self) -> float:
+        return self.driver + self.children + self.workers + self.daemons
+
+
+# --------------------------------------------------------------------------- measurements
+def _noop(x):
+    return x
+
+
+def generate_pairs(n: int, workers: int, repeats: int, out: Path) -> dict[str, list[dict]]:
+    """`repeats` interleaved local / Ray runs of generate; per run: wall, CPU parts, bytes."""
+    from vistac.engine import EngineCfg
+    from vistac_sim.generate import on_ray
+    from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.generate.run import generate
+
+    runs: dict[str, list[dict]] = {"local": [], "ray": []}
+    commit = on_ray.commit_chunk
+    for r in range(repeats):
+        cfg = GenerateCfg(n=n, seed=100 + r)
+        for engine in ("local", "ray"):
+            folder = out / f"{engine}_{r}"
+            shutil.rmtree(folder, ignore_errors=True)
+            committed: list[tuple[int, float]] = []  # (size, seconds) of the driver's commits
+
+            def timed_commit(o, i, made, committed=committed):
+                t0 = time.perf_counter()
+                size = commit(o, i, made)
+                committed.append((size, time.perf_counter() - t0))
+                return size
+
+            on_ray.commit_chunk = timed_commit
+            with Clock() as clock:
+                generate(cfg, folder, workers=workers, progress=False,
+                         engine=EngineCfg(engine=engine))
+            if engine == "local":  # Ray's idle daemons are not the local engine's cost
+                clock.workers = clock.daemons = 0.0
+            size = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
+            runs[engine].append({"wall": clock.wall, "cpu": clock.cpu, "driver": clock.driver,
+                                 "pool": clock.children, "workers": clock.workers,
+                                 "daemons": clock.daemons, "bytes": size,
+                                 "chunks": len(committed),
+                                 "commit": sum(t for _, t in committed), "commits": committed})
+            shutil.rmtree(folder)
+            print(f"repeat {r} {engine}: {clock.wall:.1f} s wall, {clock.cpu:.1f} CPU s "
+                  f"(driver {clock.driver:.1f}, workers {clock.workers + clock.children:.1f}, "
+                  f"Ray daemons {clock.daemons:.1f})", flush=True)
+    on_ray.commit_chunk = commit
+    return runs
+
+
+def noop_overhead(ray, workers: int, n_tasks: int) -> dict[str, float]:
+    """Milliseconds of wall and CPU per no-op task, three ways."""
+    from vistac.engine import RayRunner
+
+    task = ray.remote(_noop).options(num_cpus=1)
+    ray.get([task.remote(i) for i in range(4 * workers)])  # workers started and warm
+    res = {}
+    with Clock() as c:
+        ray.get([task.remote(i) for i in range(n_tasks)])
+    res |= {"batch_wall_ms": 1e3 * c.wall / n_tasks, "batch_cpu_ms": 1e3 * c.cpu / n_tasks}
+    k = max(1, n_tasks // 5)
+    with Clock() as c:
+        for i in range(k):
+            ray.get(task.remote(i))
+    res |= {"roundtrip_wall_ms": 1e3 * c.wall / k, "roundtrip_cpu_ms": 1e3 * c.cpu / k}
+    runner = RayRunner(ray, _noop, max_concurrent=workers)
+    with Clock() as c:
+        assert runner.map(range(n_tasks)) == list(range(n_tasks))
+    res |= {"runner_wall_ms": 1e3 * c.wall / n_tasks, "runner_cpu_ms": 1e3 * c.cpu / n_tasks}
+    return res
+
+
+def cold_start(workers: int) -> float:
+    """Seconds to start a local Ray instance, run one task and shut it down."""
+    from vistac.engine import EngineCfg, ray_session
+
+    t0 = time.perf_counter()
+    with ray_session(EngineCfg(engine="ray"), num_cpus=workers) as ray:
+        ray.get(ray.remote(_noop).remote(0))
+    return time.perf_counter() - t0
+
+
+# ----------------------------------------------------------------------------- the estimate
+def driver_costs(med: dict, n: int) -> dict[str, float]:
+    """The Ray driver's seconds per configuration: its CPU beyond the local engine's parent
+    process (receiving chunks, writing their images and shards), at least its measured writing
+    time (wall). Per-chunk costs are spread over the run's chunks, which are smaller than full
+    ones in a short run: an upper bound for a long run."""
+    extra = med["ray"]["driver"] - med["local"]["driver"]
+    return {"extra_cpu_s": extra / n, "commit_s": med["ray"]["commit"] / n,
+            "per_cfg_s": max(extra, med["ray"]["commit"]) / n}
+
+
+def estimate(per_cfg: dict[str, float], machines: list[int], cores: int, gbit: float
+             ) -> list[dict]:
+    """Configurations per second of a cluster, bounded by its workers, the driver and the
+    driver's network link."""
+    rows = []
+    for m in machines:
+        bounds = {"workers": m * cores / per_cfg["worker_cpu_s"],
+                  "driver": 1 / per_cfg["driver_s"],
+                  "network": gbit * 1e9 / 8 / per_cfg["bytes"]}
+        bound = min(bounds, key=bounds.get)
+        rows.append({"machines": m, "cores": m * cores, **{f"{k}_cfg_s": v
+                                                           for k, v in bounds.items()},
+                     "cfg_s": bounds[bound], "bound": bound,
+                     "speedup": bounds[bound] / (cores / per_cfg["local_worker_cpu_s"])})
+    return rows
+
+
+# ------------------------------------------------------------------------------- reporting
+def write_results(folder: Path, rows: list[tuple], md: str) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    with (folder / "ray_overhead.csv").open("w", newline="") as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(["group", "quantity", "value", "unit"])
+        w.writerows(rows)
+    (folder / "ray_overhead.md").write_text(md)
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.3g}" if abs(x) < 100 else f"{x:.0f}"
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
+    p.add_argument("--n", type=int, default=1000, help="configurations per generate run")
+    p.add_argument("--workers", type=int, default=2, help="processes / Ray CPUs")
+    p.add_argument("--repeats", type=int, default=3, help="interleaved local/Ray pairs")
+    p.add_argument("--noop-tasks", type=int, default=500, help="no-op tasks per measurement")
+    p.add_argument("--cores-per-machine", type=int, default=16, help="for the estimate")
+    p.add_argument("--gbit", type=float, default=1.0, help="driver's link (Gbit/s), estimate")
+    p.add_argument("--out", type=Path, default=Path("runs/bench_ray"))
+    p.add_argument("--results", type=Path, default=RESULTS)
+    args = p.parse_args()
+    from vistac.engine import EngineCfg, ray_session
+    from vistac_sim.generate.config import GenerateCfg
+
+    chunk_size = GenerateCfg().chunk_size
+    cold = cold_start(args.workers)
+    print(f"cold start of a local Ray instance (start, one task, shut down): {cold:.1f} s")
+    with ray_session(EngineCfg(engine="ray"), num_cpus=args.workers) as ray:
+        noop = noop_overhead(ray, args.workers, args.noop_tasks)
+        print("no-op tasks (ms per task): " + ", ".join(f"{k} {v:.2f}" for k, v in noop.items()))
+        runs = generate_pairs(args.n, args.workers, args.repeats, args.out)
+    shutil.rmtree(args.out, ignore_errors=True)
+
+    med = {e: {k: statistics.median(r[k] for r in rs) for k in rs[0] if k != "commits"}
+           for e, rs in runs.items()}
+    chunks = med["ray"]["chunks"]
+    cost = driver_costs(med, args.n)
+    per_cfg = {"driver_s": cost["per_cfg_s"],
+               "worker_cpu_s": (med["ray"]["workers"] + med["ray"]["daemons"]) / args.n,
+               "local_worker_cpu_s": med["local"]["pool"] / args.n,
+               "bytes": med["ray"]["bytes"] / args.n}
+    machines = [1, 2, 4, 8]
+    est = estimate(per_cfg, machines, args.cores_per_machine, args.gbit)
+
+    rows = [("setup", "n", args.n, "configurations"), ("setup", "workers", args.workers, "CPUs"),
+            ("setup", "repeats", args.repeats, "pairs"), ("setup", "chunk_size", chunk_size,
+                                                         "configurations"),
+            ("setup", "cpu_count", os.cpu_count(), "cores"),
+            ("ray_task", "cold_start", round(cold, 2), "s")]
+    rows += [("ray_task", k, round(v, 3), "ms/task") for k, v in noop.items()]
+    for e, rs in runs.items():
+        for i, r in enumerate(rs):
+            rows += [(f"generate_{e}", f"repeat{i}_wall", round(r["wall"], 2), "s"),
+                     (f"generate_{e}", f"repeat{i}_cpu", round(r["cpu"], 2), "s")]
+        m = med[e]
+        rows += [(f"generate_{e}", "median_wall", round(m["wall"], 2), "s"),
+                 (f"generate_{e}", "median_cpu", round(m["cpu"], 2), "s"),
+                 (f"generate_{e}", "median_driver_cpu", round(m["driver"], 2), "s"),
+                 (f"generate_{e}", "median_worker_cpu", round(m["pool"] + m["workers"], 2), "s"),
+                 (f"generate_{e}", "median_ray_daemon_cpu", round(m["daemons"], 2), "s"),
+                 (f"generate_{e}", "cfg_per_s", round(args.n / m["wall"], 2), "cfg/s"),
+                 (f"generate_{e}", "cpu_ms_per_cfg", round(1e3 * m["cpu"] / args.n, 2), "ms")]
+    rows += [("ratio", "ray_over_local_wall", round(med["ray"]["wall"] / med["local"]["wall"], 3),
+              ""), ("ratio", "ray_over_local_cpu",
+                    round(med["ray"]["cpu"] / med["local"]["cpu"], 3), "")]
+    rows += [("per_cfg", "ray_worker_cpu", round(per_cfg["worker_cpu_s"], 4), "s"),
+             ("per_cfg", "local_worker_cpu", round(per_cfg["local_worker_cpu_s"], 4), "s"),
+             ("per_cfg", "bytes", round(per_cfg["bytes"]), "B"),
+             ("per_cfg", "driver_extra_cpu", round(cost["extra_cpu_s"], 5), "s"),
+             ("per_cfg", "driver_commit_wall", round(cost["commit_s"], 5), "s"),
+             ("per_cfg", "driver", round(cost["per_cfg_s"], 5), "s"),
+             ("per_chunk", "configurations", round(args.n / chunks, 1), "")]
+    for r in est:
+        rows += [(f"estimate_{r['machines']}m", k, round(v, 1) if isinstance(v, float) else v,
+                  "cfg/s" if k.endswith("cfg_s") else "") for k, v in r.items()
+                 if k != "machines"]
+    md = markdown(args, cold, noop, med, per_cfg, cost, est, chunk_size, chunks)
+    write_results(args.results, rows, md)
+    print(md)
+
+
+def markdown(args, cold, noop, med, per_cfg, cost, est, chunk_size, chunks) -> str:
+    lo, ra = med["local"], med["ray"]
+    lines = [
+        "# Ray overhead: `vistac generate` local vs Ray, and an estimate for 8 machines",
+        "",
+        f"`python benchmarks/ray_overhead.py --n {args.n} --workers {args.workers} --repeats "
+        f"{args.repeats}` on {os.cpu_count()} CPU cores shared with other jobs (read CPU time; "
+        f"wall time depends on the load). {chunks:.0f} chunks (one object each, at most "
+        f"{chunk_size} configurations); "
+        f"medians of {args.repeats} interleaved pairs; a warm local Ray instance of "
+        f"{args.workers} CPUs.",
+        "",
+        "| engine | wall s | cfg/s | CPU s | CPU ms/cfg | driver CPU s | worker CPU s "
+        "| Ray daemons CPU s |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for name, m in (("local", lo), ("ray", ra)):
+        lines.append(f"| {name} | {m['wall']:.1f} | {args.n / m['wall']:.1f} | {m['cpu']:.1f} | "
+                     f"{1e3 * m['cpu'] / args.n:.1f} | {m['driver']:.1f} | "
+                     f"{m['pool'] + m['workers']:.1f} | {m['daemons']:.1f} |")
+    lines += [
+        "",
+        f"Ray / local: **{ra['cpu'] / lo['cpu']:.2f}x CPU**, {ra['wall'] / lo['wall']:.2f}x "
+        "wall.",
+        "",
+        "## Per-task overhead (no-op tasks, warm workers)",
+        "",
+        "| how | wall ms/task | CPU ms/task |",
+        "|---|---|---|",
+        f"| all submitted at once | {noop['batch_wall_ms']:.2f} | {noop['batch_cpu_ms']:.2f} |",
+        f"| one round trip at a time | {noop['roundtrip_wall_ms']:.2f} | "
+        f"{noop['roundtrip_cpu_ms']:.2f} |",
+        f"| `RayRunner`, {args.workers} in flight (generate's path) | "
+        f"{noop['runner_wall_ms']:.2f} | {noop['runner_cpu_ms']:.2f} |",
+        "",
+        f"Cold start of a local instance (start, one task, shut down): {cold:.1f} s, paid once "
+        "per command without `--ray-address`.",
+        "",
+        "## Per configuration and per chunk (generate on Ray)",
+        "",
+        f"- worker CPU: {1e3 * per_cfg['worker_cpu_s']:.1f} ms per configuration on Ray "
+        f"(Ray's daemons included; {1e3 * per_cfg['local_worker_cpu_s']:.1f} ms in the local "
+        "pool, whose processes start and import afresh each run);",
+        f"- driver: {1e3 * cost['per_cfg_s']:.2f} ms per configuration (its CPU beyond the "
+        f"local engine's parent process: {1e3 * cost['extra_cpu_s']:.2f} ms; of which writing "
+        f"images and shards, wall: {1e3 * cost['commit_s']:.2f} ms), receiving chunks of "
+        f"{args.n / chunks:.0f} configurations on average and writing them, which the local "
+        "engine's workers do themselves;",
+        f"- shipped to the driver: {per_cfg['bytes'] / 1e3:.1f} kB per configuration.",
+        "",
+        f"## On paper: {args.cores_per_machine}-core machines, one driver on a {args.gbit:g} "
+        "Gbit/s link",
+        "",
+        "Configurations per second = the least of what the workers make (cores / worker CPU "
+        "per configuration), what the driver receives and writes (1 / driver seconds per "
+        "configuration) and what its link carries (bandwidth / bytes per configuration). Speed-up: "
+        "against one such machine running the local engine.",
+        "",
+        "| machines | cores | workers bound cfg/s | driver bound cfg/s | network bound cfg/s "
+        "| estimate cfg/s | limited by | speed-up |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in est:
+        lines.append(f"| {r['machines']} | {r['cores']} | {_fmt(r['workers_cfg_s'])} | "
+                     f"{_fmt(r['driver_cfg_s'])} | {_fmt(r['network_cfg_s'])} | "
+                     f"**{_fmt(r['cfg_s'])}** | {r['bound']} | {r['speedup']:.1f}x |")
+    return "\n".join(lines) + "\n"
+
+
+if __name__ == "__main__":
+    sys.exit(main())
