@@ -11,12 +11,14 @@ whole benchmark (a warm cluster, as a user joining one with ``--ray-address`` se
 2. **Per-task overhead**: no-op Ray tasks, (a) submitted all at once, (b) one round trip at a
    time, (c) through `RayRunner` as generate uses it (at most `workers` in flight): wall and CPU
    per task; and the cold start of a local instance (start, first task, shutdown).
-3. **Per-chunk cost** of generate on Ray: the worker CPU per chunk (making it), the driver CPU
-   per chunk (receiving and committing it: images and shards are written by the driver) and the
-   bytes it ships.
-4. **On paper, 8 machines**: chunks per second = the least of what the workers make
-   (machines x cores / worker CPU per chunk), what one driver commits (1 / driver CPU per
-   chunk) and what its network link carries (bandwidth / bytes per chunk).
+3. **Per-chunk cost** of generate on Ray: the worker CPU per configuration (from 1.), and the
+   driver's CPU for one full chunk (`--chunk-size` default), measured directly: unpickling what
+   the task returns and committing it (the driver writes the images and shards), plus one
+   no-op task through `RayRunner`; and the bytes a chunk ships.
+4. **On paper, up to 8 machines**: configurations per second = the least of what the workers
+   make (machines x cores / worker CPU per configuration), what the one driver receives and
+   writes (1 / its CPU per configuration) and what its network link carries (bandwidth / bytes
+   per configuration).
 
 Writes ``results/ray_overhead.csv`` (group, quantity, value, unit) and ``ray_overhead.md``.
 
@@ -165,6 +167,42 @@ def noop_overhead(ray, workers: int, n_tasks: int) -> dict[str, float]:
     return res
 
 
+def driver_chunk_cost(chunk_size: int, repeats: int, out: Path) -> dict[str, float]:
+    """CPU seconds the Ray driver spends on one full chunk, measured directly: unpickling what
+    a task returns (Ray's serialiser is pickle 5) and committing it (images, shards)."""
+    import pickle
+
+    from vistac.config import apply
+    from vistac.dataset.schema import IMAGES, PARTIAL
+    from vistac_sim.effects import build_pipeline
+    from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.generate.run import commit_chunk, make_chunk, object_specs, plan_chunks
+    from vistac_sim.generate.scenes import SceneCache
+    from vistac_sim.objects.decomposition import default_cache_dir
+
+    cfg = apply(GenerateCfg(n=chunk_size, seed=7), {"objects": {"n_objects": 1}})
+    specs, _ = object_specs(cfg, cfg.seed)
+    (chunk,) = plan_chunks(cfg.n, cfg.seed, len(specs), chunk_size)
+    scenes = SceneCache(specs, cfg, size=1, cache_dir=default_cache_dir())
+    made = make_chunk(chunk, cfg, scenes, build_pipeline(cfg.effects))
+    scenes.close()
+    blob = pickle.dumps(made, protocol=5)
+    shutil.rmtree(out, ignore_errors=True)
+    (out / IMAGES).mkdir(parents=True)
+    (out / PARTIAL / "shards").mkdir(parents=True)
+    receive, commit = [], []
+    for _ in range(repeats):
+        t0 = time.process_time()
+        back = pickle.loads(blob)
+        t1 = time.process_time()
+        commit_chunk(out, 0, back)
+        receive.append(t1 - t0)
+        commit.append(time.process_time() - t1)
+    shutil.rmtree(out)
+    return {"configurations": len(made), "bytes": len(blob),
+            "receive_s": statistics.median(receive), "commit_s": statistics.median(commit)}
+
+
 def cold_start(workers: int) -> float:
     """Seconds to start a local Ray instance, run one task and shut it down."""
     from vistac.engine import EngineCfg, ray_session
@@ -177,13 +215,10 @@ def cold_start(workers: int) -> float:
 
 # ----------------------------------------------------------------------------- the estimate
 def driver_costs(med: dict, n: int) -> dict[str, float]:
-    """The Ray driver's seconds per configuration: its CPU beyond the local engine's parent
-    process (receiving chunks, writing their images and shards), at least its measured writing
-    time (wall). Per-chunk costs are spread over the run's chunks, which are smaller than full
-    ones in a short run: an upper bound for a long run."""
+    """Seconds per configuration the Ray driver spent in the generate runs beyond the local
+    engine's parent process (CPU), and writing (wall)."""
     extra = med["ray"]["driver"] - med["local"]["driver"]
-    return {"extra_cpu_s": extra / n, "commit_s": med["ray"]["commit"] / n,
-            "per_cfg_s": max(extra, med["ray"]["commit"]) / n}
+    return {"extra_cpu_s": extra / n, "commit_s": med["ray"]["commit"] / n}
 
 
 def estimate(per_cfg: dict[str, float], machines: list[int], cores: int, gbit: float
@@ -199,7 +234,7 @@ def estimate(per_cfg: dict[str, float], machines: list[int], cores: int, gbit: f
         rows.append({"machines": m, "cores": m * cores, **{f"{k}_cfg_s": v
                                                            for k, v in bounds.items()},
                      "cfg_s": bounds[bound], "bound": bound,
-                     "speedup": bounds[bound] / (cores / per_cfg["local_worker_cpu_s"])})
+                     "speedup": bounds[bound] / (cores / per_cfg["worker_cpu_s"])})
     return rows
 
 
@@ -232,6 +267,9 @@ def main() -> None:
     from vistac_sim.generate.config import GenerateCfg
 
     chunk_size = GenerateCfg().chunk_size
+    full = driver_chunk_cost(chunk_size, 5, args.out / "driver")
+    print(f"driver, one full chunk: receive {1e3 * full['receive_s']:.1f} ms, commit "
+          f"{1e3 * full['commit_s']:.1f} ms CPU, {full['bytes'] / 1e3:.0f} kB")
     cold = cold_start(args.workers)
     print(f"cold start of a local Ray instance (start, one task, shut down): {cold:.1f} s")
     with ray_session(EngineCfg(engine="ray"), num_cpus=args.workers) as ray:
@@ -244,10 +282,14 @@ def main() -> None:
            for e, rs in runs.items()}
     chunks = med["ray"]["chunks"]
     cost = driver_costs(med, args.n)
-    per_cfg = {"driver_s": cost["per_cfg_s"],
+    # the driver per full chunk: what it does with the chunk, plus a whole no-op task through
+    # RayRunner (driver, worker and daemons: an upper bound of the driver's share)
+    full["task_s"] = noop["runner_cpu_ms"] / 1e3
+    full["total_s"] = full["receive_s"] + full["commit_s"] + full["task_s"]
+    per_cfg = {"driver_s": full["total_s"] / full["configurations"],
                "worker_cpu_s": (med["ray"]["workers"] + med["ray"]["daemons"]) / args.n,
                "local_worker_cpu_s": med["local"]["pool"] / args.n,
-               "bytes": med["ray"]["bytes"] / args.n}
+               "bytes": full["bytes"] / full["configurations"]}
     machines = [1, 2, 4, 8]
     est = estimate(per_cfg, machines, args.cores_per_machine, args.gbit)
 
@@ -277,18 +319,23 @@ def main() -> None:
              ("per_cfg", "bytes", round(per_cfg["bytes"]), "B"),
              ("per_cfg", "driver_extra_cpu", round(cost["extra_cpu_s"], 5), "s"),
              ("per_cfg", "driver_commit_wall", round(cost["commit_s"], 5), "s"),
-             ("per_cfg", "driver", round(cost["per_cfg_s"], 5), "s"),
+             ("per_cfg", "driver", round(per_cfg["driver_s"], 5), "s"),
+             ("full_chunk", "configurations", full["configurations"], ""),
+             ("full_chunk", "bytes", full["bytes"], "B"),
+             ("full_chunk", "driver_receive_cpu", round(full["receive_s"], 4), "s"),
+             ("full_chunk", "driver_commit_cpu", round(full["commit_s"], 4), "s"),
+             ("full_chunk", "task_overhead_cpu", round(full["task_s"], 4), "s"),
              ("per_chunk", "configurations", round(args.n / chunks, 1), "")]
     for r in est:
         rows += [(f"estimate_{r['machines']}m", k, round(v, 1) if isinstance(v, float) else v,
                   "cfg/s" if k.endswith("cfg_s") else "") for k, v in r.items()
                  if k != "machines"]
-    md = markdown(args, cold, noop, med, per_cfg, cost, est, chunk_size, chunks)
+    md = markdown(args, cold, noop, med, per_cfg, cost, full, est, chunk_size, chunks)
     write_results(args.results, rows, md)
     print(md)
 
 
-def markdown(args, cold, noop, med, per_cfg, cost, est, chunk_size, chunks) -> str:
+def markdown(args, cold, noop, med, per_cfg, cost, full, est, chunk_size, chunks) -> str:
     lo, ra = med["local"], med["ray"]
     lines = [
         "# Ray overhead: `vistac generate` local vs Ray, and an estimate for 8 machines",
@@ -331,11 +378,13 @@ def markdown(args, cold, noop, med, per_cfg, cost, est, chunk_size, chunks) -> s
         f"- worker CPU: {1e3 * per_cfg['worker_cpu_s']:.1f} ms per configuration on Ray "
         f"(Ray's daemons included; {1e3 * per_cfg['local_worker_cpu_s']:.1f} ms in the local "
         "pool, whose processes start and import afresh each run);",
-        f"- driver: {1e3 * cost['per_cfg_s']:.2f} ms per configuration (its CPU beyond the "
-        f"local engine's parent process: {1e3 * cost['extra_cpu_s']:.2f} ms; of which writing "
-        f"images and shards, wall: {1e3 * cost['commit_s']:.2f} ms), receiving chunks of "
-        f"{args.n / chunks:.0f} configurations on average and writing them, which the local "
-        "engine's workers do themselves;",
+        f"- driver, one full chunk of {full['configurations']} (measured directly, CPU): "
+        f"unpickling it {1e3 * full['receive_s']:.1f} ms, writing its images and shards "
+        f"{1e3 * full['commit_s']:.1f} ms, plus a whole no-op task through `RayRunner` "
+        f"{1e3 * full['task_s']:.1f} ms: **{1e3 * per_cfg['driver_s']:.2f} ms per "
+        "configuration**, work the local engine's workers do themselves (in the runs above, "
+        f"chunks of {args.n / chunks:.0f} on average: the Ray driver's CPU beyond the local "
+        f"engine's parent process {1e3 * cost['extra_cpu_s']:.2f} ms per configuration);",
         f"- shipped to the driver: {per_cfg['bytes'] / 1e3:.1f} kB per configuration.",
         "",
         f"## On paper: {args.cores_per_machine}-core machines, one driver on a {args.gbit:g} "
@@ -344,7 +393,8 @@ def markdown(args, cold, noop, med, per_cfg, cost, est, chunk_size, chunks) -> s
         "Configurations per second = the least of what the workers make (cores / worker CPU "
         "per configuration), what the driver receives and writes (1 / driver seconds per "
         "configuration) and what its link carries (bandwidth / bytes per configuration). Speed-up: "
-        "against one such machine running the local engine.",
+        "against one such machine running the local engine at the same CPU per configuration "
+        "(a long run amortises the local pool's start-up).",
         "",
         "| machines | cores | workers bound cfg/s | driver bound cfg/s | network bound cfg/s "
         "| estimate cfg/s | limited by | speed-up |",
