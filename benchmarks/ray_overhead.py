@@ -104,17 +104,20 @@ def _noop(x):
 
 
 def generate_pairs(n: int, workers: int, repeats: int, out: Path) -> dict[str, list[dict]]:
-    """`repeats` interleaved local / Ray runs of generate; per run: wall, CPU parts, bytes."""
+    """`repeats` interleaved runs of generate: local, Ray with the driver writing, Ray with the
+    workers writing; per run: wall, CPU parts, bytes, the driver's commits."""
     from vistac.engine import EngineCfg
     from vistac_sim.generate import on_ray
     from vistac_sim.generate.config import GenerateCfg
     from vistac_sim.generate.run import generate
 
-    runs: dict[str, list[dict]] = {"local": [], "ray": []}
+    engines = {"local": EngineCfg(), "ray": EngineCfg(engine="ray"),
+               "ray_workers": EngineCfg(engine="ray", ray_writes="workers")}
+    runs: dict[str, list[dict]] = {e: [] for e in engines}
     commit = on_ray.commit_chunk
     for r in range(repeats):
-        cfg = GenerateCfg(n=n, seed=100 + r)
-        for engine in ("local", "ray"):
+        for k, engine in enumerate(engines):  # a seed per run: no run reuses a worker's scenes
+            cfg = GenerateCfg(n=n, seed=100 + len(engines) * r + k)
             folder = out / f"{engine}_{r}"
             shutil.rmtree(folder, ignore_errors=True)
             committed: list[tuple[int, float]] = []  # (size, seconds) of the driver's commits
@@ -128,7 +131,7 @@ def generate_pairs(n: int, workers: int, repeats: int, out: Path) -> dict[str, l
             on_ray.commit_chunk = timed_commit
             with Clock() as clock:
                 generate(cfg, folder, workers=workers, progress=False,
-                         engine=EngineCfg(engine=engine))
+                         engine=engines[engine])
             if engine == "local":  # Ray's idle daemons are not the local engine's cost
                 clock.workers = clock.daemons = 0.0
             size = sum(p.stat().st_size for p in folder.rglob("*") if p.is_file())
@@ -221,10 +224,11 @@ def driver_costs(med: dict, n: int) -> dict[str, float]:
     return {"extra_cpu_s": extra / n, "commit_s": med["ray"]["commit"] / n}
 
 
-def estimate(per_cfg: dict[str, float], machines: list[int], cores: int, gbit: float
-             ) -> list[dict]:
+def estimate(per_cfg: dict[str, float], machines: list[int], cores: int, gbit: float,
+             local_cpu_s: float) -> list[dict]:
     """Configurations per second of a cluster, bounded by its workers, the driver and the
-    driver's network link."""
+    network link the data crosses (the driver's, or the shared filesystem's); speed-up against
+    one machine running the local engine at `local_cpu_s` per configuration."""
     rows = []
     for m in machines:
         bounds = {"workers": m * cores / per_cfg["worker_cpu_s"],
@@ -234,7 +238,7 @@ def estimate(per_cfg: dict[str, float], machines: list[int], cores: int, gbit: f
         rows.append({"machines": m, "cores": m * cores, **{f"{k}_cfg_s": v
                                                            for k, v in bounds.items()},
                      "cfg_s": bounds[bound], "bound": bound,
-                     "speedup": bounds[bound] / (cores / per_cfg["worker_cpu_s"])})
+                     "speedup": bounds[bound] / (cores / local_cpu_s)})
     return rows
 
 
@@ -256,10 +260,10 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawTextHelpFormatter)
     p.add_argument("--n", type=int, default=1000, help="configurations per generate run")
     p.add_argument("--workers", type=int, default=2, help="processes / Ray CPUs")
-    p.add_argument("--repeats", type=int, default=3, help="interleaved local/Ray pairs")
+    p.add_argument("--repeats", type=int, default=3, help="interleaved local/Ray runs")
     p.add_argument("--noop-tasks", type=int, default=500, help="no-op tasks per measurement")
     p.add_argument("--cores-per-machine", type=int, default=16, help="for the estimate")
-    p.add_argument("--gbit", type=float, default=1.0, help="driver's link (Gbit/s), estimate")
+    p.add_argument("--gbit", type=float, default=1.0, help="network link (Gbit/s), estimate")
     p.add_argument("--out", type=Path, default=Path("runs/bench_ray"))
     p.add_argument("--results", type=Path, default=RESULTS)
     args = p.parse_args()
@@ -286,16 +290,22 @@ def main() -> None:
     # RayRunner (driver, worker and daemons: an upper bound of the driver's share)
     full["task_s"] = noop["runner_cpu_ms"] / 1e3
     full["total_s"] = full["receive_s"] + full["commit_s"] + full["task_s"]
-    per_cfg = {"driver_s": full["total_s"] / full["configurations"],
-               "worker_cpu_s": (med["ray"]["workers"] + med["ray"]["daemons"]) / args.n,
-               "local_worker_cpu_s": med["local"]["pool"] / args.n,
-               "bytes": full["bytes"] / full["configurations"]}
+    n_full = full["configurations"]
+    # per configuration, for the estimate: making it (Ray workers, driver writing) and writing
+    # it (the full chunk's commit) go to the workers or the driver
+    make = (med["ray"]["workers"] + med["ray"]["daemons"]) / args.n
+    write = full["commit_s"] / n_full
+    modes = {"driver writes": {"driver_s": full["total_s"] / n_full, "worker_cpu_s": make,
+                               "bytes": full["bytes"] / n_full},
+             "workers write": {"driver_s": full["task_s"] / n_full, "worker_cpu_s": make + write,
+                               "bytes": full["bytes"] / n_full}}
     machines = [1, 2, 4, 8]
-    est = estimate(per_cfg, machines, args.cores_per_machine, args.gbit)
+    est = {mode: estimate(pc, machines, args.cores_per_machine, args.gbit, make + write)
+           for mode, pc in modes.items()}
 
     rows = [("setup", "n", args.n, "configurations"), ("setup", "workers", args.workers, "CPUs"),
-            ("setup", "repeats", args.repeats, "pairs"), ("setup", "chunk_size", chunk_size,
-                                                         "configurations"),
+            ("setup", "repeats", args.repeats, "runs"),
+            ("setup", "chunk_size", chunk_size, "configurations"),
             ("setup", "cpu_count", os.cpu_count(), "cores"),
             ("ray_task", "cold_start", round(cold, 2), "s")]
     rows += [("ray_task", k, round(v, 3), "ms/task") for k, v in noop.items()]
@@ -310,55 +320,63 @@ def main() -> None:
                  (f"generate_{e}", "median_worker_cpu", round(m["pool"] + m["workers"], 2), "s"),
                  (f"generate_{e}", "median_ray_daemon_cpu", round(m["daemons"], 2), "s"),
                  (f"generate_{e}", "cfg_per_s", round(args.n / m["wall"], 2), "cfg/s"),
-                 (f"generate_{e}", "cpu_ms_per_cfg", round(1e3 * m["cpu"] / args.n, 2), "ms")]
-    rows += [("ratio", "ray_over_local_wall", round(med["ray"]["wall"] / med["local"]["wall"], 3),
-              ""), ("ratio", "ray_over_local_cpu",
-                    round(med["ray"]["cpu"] / med["local"]["cpu"], 3), "")]
-    rows += [("per_cfg", "ray_worker_cpu", round(per_cfg["worker_cpu_s"], 4), "s"),
-             ("per_cfg", "local_worker_cpu", round(per_cfg["local_worker_cpu_s"], 4), "s"),
-             ("per_cfg", "bytes", round(per_cfg["bytes"]), "B"),
-             ("per_cfg", "driver_extra_cpu", round(cost["extra_cpu_s"], 5), "s"),
-             ("per_cfg", "driver_commit_wall", round(cost["commit_s"], 5), "s"),
-             ("per_cfg", "driver", round(per_cfg["driver_s"], 5), "s"),
-             ("full_chunk", "configurations", full["configurations"], ""),
+                 (f"generate_{e}", "cpu_ms_per_cfg", round(1e3 * m["cpu"] / args.n, 2), "ms"),
+                 (f"generate_{e}", "cpu_over_local", round(m["cpu"] / med["local"]["cpu"], 3),
+                  "")]
+    rows += [("driver_writes", "extra_cpu_per_cfg", round(cost["extra_cpu_s"], 5), "s"),
+             ("driver_writes", "commit_wall_per_cfg", round(cost["commit_s"], 5), "s"),
+             ("driver_writes", "configurations_per_chunk", round(args.n / chunks, 1), ""),
+             ("full_chunk", "configurations", n_full, ""),
              ("full_chunk", "bytes", full["bytes"], "B"),
              ("full_chunk", "driver_receive_cpu", round(full["receive_s"], 4), "s"),
              ("full_chunk", "driver_commit_cpu", round(full["commit_s"], 4), "s"),
-             ("full_chunk", "task_overhead_cpu", round(full["task_s"], 4), "s"),
-             ("per_chunk", "configurations", round(args.n / chunks, 1), "")]
-    for r in est:
-        rows += [(f"estimate_{r['machines']}m", k, round(v, 1) if isinstance(v, float) else v,
-                  "cfg/s" if k.endswith("cfg_s") else "") for k, v in r.items()
-                 if k != "machines"]
-    md = markdown(args, cold, noop, med, per_cfg, cost, full, est, chunk_size, chunks)
+             ("full_chunk", "task_overhead_cpu", round(full["task_s"], 4), "s")]
+    for mode, pc in modes.items():
+        tag = mode.replace(" ", "_")
+        rows += [(f"per_cfg_{tag}", k, round(v, 5), "B" if k == "bytes" else "s")
+                 for k, v in pc.items()]
+        for r in est[mode]:
+            rows += [(f"estimate_{tag}_{r['machines']}m", k,
+                      round(v, 1) if isinstance(v, float) else v,
+                      "cfg/s" if k.endswith("cfg_s") else "") for k, v in r.items()
+                     if k != "machines"]
+    md = markdown(args, cold, noop, runs, med, modes, cost, full, est, chunk_size, chunks)
     write_results(args.results, rows, md)
     print(md)
 
 
-def markdown(args, cold, noop, med, per_cfg, cost, full, est, chunk_size, chunks) -> str:
-    lo, ra = med["local"], med["ray"]
+ENGINE_NAMES = {"local": "local (process pool)", "ray": "ray, driver writes (default)",
+                "ray_workers": "ray, workers write (`--ray-writes workers`)"}
+
+
+def markdown(args, cold, noop, runs, med, modes, cost, full, est, chunk_size, chunks) -> str:
+    lo = med["local"]
     lines = [
         "# Ray overhead: `vistac generate` local vs Ray, and an estimate for 8 machines",
         "",
         f"`python benchmarks/ray_overhead.py --n {args.n} --workers {args.workers} --repeats "
         f"{args.repeats}` on {os.cpu_count()} CPU cores shared with other jobs (read CPU time; "
         f"wall time depends on the load). {chunks:.0f} chunks (one object each, at most "
-        f"{chunk_size} configurations); "
-        f"medians of {args.repeats} interleaved pairs; a warm local Ray instance of "
-        f"{args.workers} CPUs.",
+        f"{chunk_size} configurations); medians of {args.repeats} interleaved runs of each "
+        f"engine, each repeat on its own seed; one warm local Ray instance of {args.workers} "
+        "CPUs for all Ray runs.",
         "",
-        "| engine | wall s | cfg/s | CPU s | CPU ms/cfg | driver CPU s | worker CPU s "
+        "| engine | wall s | cfg/s | CPU s | CPU / local | driver CPU s | worker CPU s "
         "| Ray daemons CPU s |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for name, m in (("local", lo), ("ray", ra)):
-        lines.append(f"| {name} | {m['wall']:.1f} | {args.n / m['wall']:.1f} | {m['cpu']:.1f} | "
-                     f"{1e3 * m['cpu'] / args.n:.1f} | {m['driver']:.1f} | "
+    for name, m in med.items():
+        lines.append(f"| {ENGINE_NAMES[name]} | {m['wall']:.1f} | {args.n / m['wall']:.1f} | "
+                     f"{m['cpu']:.1f} | **{m['cpu'] / lo['cpu']:.2f}** | {m['driver']:.1f} | "
                      f"{m['pool'] + m['workers']:.1f} | {m['daemons']:.1f} |")
     lines += [
         "",
-        f"Ray / local: **{ra['cpu'] / lo['cpu']:.2f}x CPU**, {ra['wall'] / lo['wall']:.2f}x "
-        "wall.",
+        "The Ray workers stay up between runs (imports and the GL context done once); the local "
+        "pool starts and imports afresh in every run, so on a warm cluster Ray can cost less "
+        "CPU than the local engine at this size (the first Ray run pays the workers' imports). "
+        "CPU s of each run, in order: "
+        + "; ".join(f"{e} " + ", ".join(f"{r['cpu']:.1f}" for r in rs) for e, rs in runs.items())
+        + ".",
         "",
         "## Per-task overhead (no-op tasks, warm workers)",
         "",
@@ -373,37 +391,43 @@ def markdown(args, cold, noop, med, per_cfg, cost, full, est, chunk_size, chunks
         f"Cold start of a local instance (start, one task, shut down): {cold:.1f} s, paid once "
         "per command without `--ray-address`.",
         "",
-        "## Per configuration and per chunk (generate on Ray)",
+        "## Per configuration and per chunk",
         "",
-        f"- worker CPU: {1e3 * per_cfg['worker_cpu_s']:.1f} ms per configuration on Ray "
-        f"(Ray's daemons included; {1e3 * per_cfg['local_worker_cpu_s']:.1f} ms in the local "
-        "pool, whose processes start and import afresh each run);",
-        f"- driver, one full chunk of {full['configurations']} (measured directly, CPU): "
-        f"unpickling it {1e3 * full['receive_s']:.1f} ms, writing its images and shards "
+        f"- worker CPU per configuration (Ray's daemons included), making it: "
+        f"{1e3 * modes['driver writes']['worker_cpu_s']:.1f} ms (the runs with the driver "
+        "writing); a worker that also writes it adds the driver's writing cost below;",
+        f"- the driver, for one full chunk of {full['configurations']} (measured directly, "
+        f"CPU): unpickling it {1e3 * full['receive_s']:.1f} ms, writing its images and shards "
         f"{1e3 * full['commit_s']:.1f} ms, plus a whole no-op task through `RayRunner` "
-        f"{1e3 * full['task_s']:.1f} ms: **{1e3 * per_cfg['driver_s']:.2f} ms per "
-        "configuration**, work the local engine's workers do themselves (in the runs above, "
-        f"chunks of {args.n / chunks:.0f} on average: the Ray driver's CPU beyond the local "
-        f"engine's parent process {1e3 * cost['extra_cpu_s']:.2f} ms per configuration);",
-        f"- shipped to the driver: {per_cfg['bytes'] / 1e3:.1f} kB per configuration.",
+        f"{1e3 * full['task_s']:.1f} ms (an upper bound of the driver's share): "
+        f"**{1e3 * modes['driver writes']['driver_s']:.2f} ms per configuration** when it "
+        f"writes, **{1e3 * modes['workers write']['driver_s']:.2f} ms** when the workers do. "
+        f"(In the runs above, chunks of {args.n / chunks:.0f} on average, the writing driver "
+        f"used {1e3 * cost['extra_cpu_s']:.2f} ms CPU per configuration more than the local "
+        "engine's parent process.)",
+        f"- data per configuration: {modes['driver writes']['bytes'] / 1e3:.1f} kB (to the "
+        "driver, or to the shared filesystem).",
         "",
-        f"## On paper: {args.cores_per_machine}-core machines, one driver on a {args.gbit:g} "
-        "Gbit/s link",
+        f"## On paper: {args.cores_per_machine}-core machines, {args.gbit:g} Gbit/s links",
         "",
         "Configurations per second = the least of what the workers make (cores / worker CPU "
-        "per configuration), what the driver receives and writes (1 / driver seconds per "
-        "configuration) and what its link carries (bandwidth / bytes per configuration). Speed-up: "
-        "against one such machine running the local engine at the same CPU per configuration "
-        "(a long run amortises the local pool's start-up).",
+        "per configuration), what the one driver handles (1 / its CPU per configuration) and "
+        "what the link the data crosses carries (bandwidth / bytes per configuration: the "
+        "driver's, or the file server's). Speed-up: against one such machine running the local "
+        "engine at the same CPU per configuration, making and writing (a long run amortises "
+        "the local pool's start-up).",
         "",
-        "| machines | cores | workers bound cfg/s | driver bound cfg/s | network bound cfg/s "
+        "| machines | cores | writes | workers bound | driver bound | network bound "
         "| estimate cfg/s | limited by | speed-up |",
-        "|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
-    for r in est:
-        lines.append(f"| {r['machines']} | {r['cores']} | {_fmt(r['workers_cfg_s'])} | "
-                     f"{_fmt(r['driver_cfg_s'])} | {_fmt(r['network_cfg_s'])} | "
-                     f"**{_fmt(r['cfg_s'])}** | {r['bound']} | {r['speedup']:.1f}x |")
+    for i in range(len(est["driver writes"])):
+        for mode in est:
+            r = est[mode][i]
+            lines.append(f"| {r['machines']} | {r['cores']} | {mode} | "
+                         f"{_fmt(r['workers_cfg_s'])} | {_fmt(r['driver_cfg_s'])} | "
+                         f"{_fmt(r['network_cfg_s'])} | **{_fmt(r['cfg_s'])}** | {r['bound']} "
+                         f"| {r['speedup']:.1f}x |")
     return "\n".join(lines) + "\n"
 
 
