@@ -13,12 +13,12 @@ import shapely
 import trimesh
 from shapely.ops import unary_union
 
+from vistac.dataset.files import atomic_write_bytes, remove_stale_temporaries
+
 # CoACD's search budget: a quarter of its default cost (20 s instead of 80 s of CPU for a 4 k-face
 # scan) for decompositions within the same concavity threshold.
 COACD_BUDGET = {"max_convex_hull": 16, "mcts_iterations": 40, "mcts_nodes": 10,
                 "resolution": 1000, "preprocess_resolution": 30}
-
-from vistac.dataset.files import atomic_write_bytes, remove_stale_temporaries
 
 
 def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
