@@ -123,3 +123,18 @@ def test_engine_options_are_checked_before_ray_starts(setup, tmp_path, capsys):
     assert _tune(out, args, "--engine", "ray", "--ray-address", "127.0.0.1:1") == 2
     assert "no Ray cluster answers there" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_fingertips_are_located_once_before_the_trials(setup, tmp_path):
+    """Trials running at once would each locate the fingertips of the dataset and race to write
+    the cache; the driver does it first (for a view that needs them)."""
+    from vistac_learn.train.config import protocol_cfg
+    from vistac_learn.tune.engines import warm_fingertip_cache
+
+    data = setup[0][1]
+    study = protocol_cfg("study", data, str(tmp_path / "r"), cache_dir=str(tmp_path / "c1"))
+    warm_fingertip_cache(study)
+    assert not (tmp_path / "c1").exists()  # the study's views do not use them
+    tip = protocol_cfg("default", data, str(tmp_path / "r"), cache_dir=str(tmp_path / "c2"))
+    warm_fingertip_cache(tip)
+    assert len(list((tmp_path / "c2").glob("fingertips-*.parquet"))) == 1

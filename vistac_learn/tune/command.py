@@ -61,7 +61,7 @@ def _handler(args: argparse.Namespace) -> int:
         raise UserError(f"--{str(exc).replace('seed:', 'tune-seed:')}") from None
     check_folder(cfg, base, space, args.resume)
     preflight(engine)
-    with tune_runner(engine, base) as runner:
+    with tune_runner(engine, base, progress=not args.quiet) as runner:
         if engine.engine == "ray" and not args.quiet:
             k = runner.concurrency
             print(f"tune on Ray: {k} trial{'s' if k > 1 else ''} at once", flush=True)

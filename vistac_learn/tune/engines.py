@@ -30,7 +30,7 @@ TRIAL_RETRIES = 2  # times Ray re-runs a trial whose worker or node died
 
 
 @contextmanager
-def tune_runner(engine: EngineCfg, base: TrainCfg) -> Iterator[Any]:
+def tune_runner(engine: EngineCfg, base: TrainCfg, progress: bool = False) -> Iterator[Any]:
     """The runner of the trials (``run(items)``, ``concurrency``), open for the block.
 
     With Ray the fingertip table of the dataset is located here first, once, so that trials
@@ -42,17 +42,17 @@ def tune_runner(engine: EngineCfg, base: TrainCfg) -> Iterator[Any]:
     if engine.engine == "local":
         yield LocalRunner(run_job, (TrainingDiverged,))
         return
-    warm_fingertip_cache(base)
+    warm_fingertip_cache(base, progress)
     with ray_session(engine) as ray:
         yield RayRunner(ray, run_job, (TrainingDiverged,), max_concurrent=engine.max_concurrent,
                         num_cpus=TRIAL_CPUS, max_retries=TRIAL_RETRIES)
 
 
-def warm_fingertip_cache(base: TrainCfg) -> None:
+def warm_fingertip_cache(base: TrainCfg, progress: bool = False) -> None:
     """Locate the fingertips of ``base.data`` into its cache, if the trials' view needs them."""
     if not build_view(base).needs_tips:
         return
     from vistac.dataset import open_dataset
     from vistac_learn.data.fingertips import fingertip_table
 
-    fingertip_table(open_dataset(base.data), cache_dir=base.cache_dir)
+    fingertip_table(open_dataset(base.data), cache_dir=base.cache_dir, progress=progress)
