@@ -40,6 +40,7 @@ from pathlib import Path
 
 RESULTS = Path(__file__).parent / "results"
 TICK = os.sysconf("SC_CLK_TCK")
+RAY_AGENTS = ("ray::DashboardA", "ray::RuntimeEnv")  # Ray's daemons named like its workers
 
 
 # ------------------------------------------------------------------------------- CPU clocks
@@ -74,7 +75,7 @@ def _own_cpu() -> tuple[float, float]:
 
 class Clock:
     """Wall and CPU time of a block: this process, its waited children, its live descendants
-    (split into Ray workers, named ``ray::...``, and everything else)."""
+    (split into Ray workers, named ``ray::IDLE`` or ``ray::<task>``, and everything else)."""
 
     def __enter__(self) -> Clock:
         self._tree, self._own, self._t = _proc_tree(), _own_cpu(), time.perf_counter()
@@ -88,7 +89,7 @@ class Clock:
         self.workers = self.daemons = 0.0
         for pid, (name, cpu) in _proc_tree().items():
             delta = cpu - self._tree.get(pid, (name, 0.0))[1]
-            if name.startswith("ray::"):
+            if name.startswith("ray::") and not name.startswith(RAY_AGENTS):
                 self.workers += delta
             else:
                 self.daemons += delta

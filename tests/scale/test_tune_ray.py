@@ -105,10 +105,44 @@ def test_killed_ray_driver_then_resume(ray_local, setup, tmp_path):
         time.sleep(0.05)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
+    _wait_until_no_task_runs()
     finished = len(_rows(out))
     assert 1 <= finished < TRIALS and json.loads((out / "pending.json").read_text())
     assert _tune(out, args, "--engine", "ray", "--resume") == 0
     _assert_same_tuning(ref, out)
+
+
+def _wait_until_no_task_runs(timeout_s: float = 60.0) -> None:
+    """Ray kills the workers running a dead driver's tasks; wait for that, so that no trial of
+    the killed driver still writes while the resumed one runs (as a user restarting at once
+    would, the next driver takes seconds to start)."""
+    deadline = time.time() + timeout_s
+    while time.time() < deadline:
+        if not any(name == "ray::_call" for name in _descendants().values()):
+            return
+        time.sleep(0.1)
+    raise AssertionError("a task of the killed driver still runs")
+
+
+def _descendants() -> dict[int, str]:
+    """pid -> process name of every descendant of this process (the module's Ray instance)."""
+    parents, names = {}, {}
+    for entry in os.scandir("/proc"):
+        if entry.name.isdigit():
+            try:
+                stat = open(os.path.join(entry.path, "stat")).read()
+            except OSError:
+                continue
+            names[int(entry.name)] = stat[stat.index("(") + 1:stat.rindex(")")]
+            parents[int(entry.name)] = int(stat[stat.rindex(")") + 2:].split()[1])
+    found, frontier = {}, [os.getpid()]
+    while frontier:
+        parent = frontier.pop()
+        for pid, ppid in parents.items():
+            if ppid == parent and pid not in found:
+                found[pid] = names[pid]
+                frontier.append(pid)
+    return found
 
 
 def test_engine_options_are_checked_before_ray_starts(setup, tmp_path, capsys):
