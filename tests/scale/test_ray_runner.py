@@ -94,6 +94,10 @@ def test_concurrency_follows_the_cpus_and_the_cap(ray):
     assert _max_overlap(capped.map([0.1] * 3)) == 1
     assert RayRunner(ray, square, max_concurrent=8).concurrency == 2
     assert RayRunner(ray, square, num_cpus=2).concurrency == 1
+    with pytest.raises(UserError, match="asks for 4 CPU and 0 GPU, the cluster has 2 CPU"):
+        RayRunner(ray, square, num_cpus=4)
+    with pytest.raises(UserError, match="asks for 1 CPU and 1 GPU, the cluster has 2 CPU and 0"):
+        RayRunner(ray, square, num_gpus=1)
 
 
 def test_a_dead_worker_is_retried_by_ray(ray, tmp_path):

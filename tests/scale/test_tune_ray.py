@@ -76,17 +76,27 @@ def test_ray_engine_writes_what_the_local_engine_writes(ray_local, setup, tmp_pa
     out = tmp_path / "ray"
     assert main(["tune", "--out", str(out), "--trials", str(TRIALS), *args, "--engine", "ray"]) \
         == 0
-    assert "tune on Ray: 2 trials at once" in capsys.readouterr().out  # the fixture's 2 CPUs
+    assert "tune on Ray: 2 trials at once (1 CPU, 0 GPU each)" in capsys.readouterr().out
     _assert_same_tuning(ref, out)
 
 
 def test_ray_engine_resumes_after_a_trial_cap(ray_local, setup, tmp_path, capsys):
     args, ref = setup
     out = tmp_path / "capped"
-    assert _tune(out, args, "--engine", "ray", "--max-concurrent", "1", trials=1) == 0
+    assert main(["tune", "--out", str(out), "--trials", "1", *args, "--engine", "ray",
+                 "--trial-cpus", "2"]) == 0
+    assert "1 trial at once (2 CPU, 0 GPU each)" in capsys.readouterr().out  # of 2 CPUs
     assert [r["trial"] for r in _rows(out)] == ["0"]
     assert _tune(out, args, "--engine", "ray", "--resume") == 0
     _assert_same_tuning(ref, out)
+
+
+def test_trials_asking_for_more_than_the_cluster_has_are_refused(ray_local, setup, tmp_path,
+                                                                 capsys):
+    args, _ = setup
+    assert _tune(tmp_path / "t", args, "--engine", "ray", "--trial-gpus", "1") == 2
+    assert "a task asks for 1 CPU and 1 GPU, the cluster has 2 CPU and 0 GPU" \
+        in capsys.readouterr().err
 
 
 def test_killed_ray_driver_then_resume(ray_local, setup, tmp_path):
@@ -152,6 +162,10 @@ def test_engine_options_are_checked_before_ray_starts(setup, tmp_path, capsys):
     assert "--ray-address: needs --engine ray" in capsys.readouterr().err
     assert _tune(out, args, "--max-concurrent", "2") == 2
     assert "--max-concurrent: needs --engine ray" in capsys.readouterr().err
+    assert _tune(out, args, "--trial-gpus", "1") == 2
+    assert "--trial-gpus: needs --engine ray" in capsys.readouterr().err
+    assert _tune(out, args, "--engine", "ray", "--trial-cpus", "0") == 2
+    assert "--trial-cpus: must be > 0" in capsys.readouterr().err
     assert _tune(out, args, "--engine", "ray", "--max-concurrent", "0") == 2
     assert "--max-concurrent: must be >= 1" in capsys.readouterr().err
     assert _tune(out, args, "--engine", "ray", "--ray-address", "127.0.0.1:1") == 2
