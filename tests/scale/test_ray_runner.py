@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from vistac.config import ConfigError
-from vistac.engine import EngineCfg, RayRunner
+from vistac.engine import ONLY_ASSIGNED_GPUS, EngineCfg, RayRunner
 from vistac.errors import UserError
 
 
@@ -24,6 +24,10 @@ def ray(ray_local):
 
 def square(x: int) -> int:
     return x * x
+
+
+def env_of(name: str) -> str | None:
+    return os.environ.get(name)
 
 
 def timed_nap(x: float) -> tuple[float, float]:
@@ -115,3 +119,8 @@ def test_errors_returned_raised_or_propagated(ray):
     assert type(info.value) is UserError  # as the job raised it: one line for the CLI
     with pytest.raises(ray.exceptions.RayTaskError, match="a bug"):
         RayRunner(ray, Picky(), returned_errors=(ValueError,)).map([3])
+
+
+def test_a_task_asking_for_no_gpu_sees_none_in_only_assigned_gpus(ray):
+    runner = RayRunner(ray, env_of, runtime_env=ONLY_ASSIGNED_GPUS)
+    assert runner.map(["CUDA_VISIBLE_DEVICES"]) == [""]

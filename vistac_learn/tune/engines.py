@@ -23,7 +23,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from vistac.config import Config, param
-from vistac.engine import EngineCfg, RayRunner, ray_session
+from vistac.engine import ONLY_ASSIGNED_GPUS, EngineCfg, RayRunner, ray_session
 from vistac_learn.train.config import TrainCfg, build_view
 
 TRIAL_RETRIES = 2  # times Ray re-runs a trial whose worker or node died
@@ -38,7 +38,7 @@ class TrialCfg(Config):
                               "Ray reserves for each trial (trials at once: the cluster's CPUs "
                               "/ C, at most --max-concurrent)")
     trial_gpus: float = param(0.0, ge=0, le=64, metavar="G", help="with --engine ray: GPUs Ray "
-                              "reserves for each trial and makes visible to it (0: trials see "
+                              "reserves for each trial, the only ones it sees (0: trials see "
                               "no GPU and train on CPU; 0.5: two trials share one)")
 
 
@@ -63,7 +63,7 @@ def tune_runner(engine: EngineCfg, base: TrainCfg, trial: TrialCfg = TrialCfg(),
     with ray_session(engine) as ray:
         yield RayRunner(ray, run_job, (TrainingDiverged,), max_concurrent=engine.max_concurrent,
                         num_cpus=trial.trial_cpus, num_gpus=trial.trial_gpus,
-                        max_retries=TRIAL_RETRIES)
+                        max_retries=TRIAL_RETRIES, runtime_env=ONLY_ASSIGNED_GPUS)
 
 
 def warm_fingertip_cache(base: TrainCfg, progress: bool = False) -> None:
