@@ -164,6 +164,8 @@ def test_engine_options_are_checked_before_ray_starts(setup, tmp_path, capsys):
     assert "--max-concurrent: needs --engine ray" in capsys.readouterr().err
     assert _tune(out, args, "--trial-gpus", "1") == 2
     assert "--trial-gpus: needs --engine ray" in capsys.readouterr().err
+    assert _tune(out, [*args, "--device", "cuda"], "--engine", "ray") == 2
+    assert "--device cuda: with --engine ray a trial sees only" in capsys.readouterr().err
     assert _tune(out, args, "--engine", "ray", "--trial-cpus", "0") == 2
     assert "--trial-cpus: must be > 0" in capsys.readouterr().err
     assert _tune(out, args, "--engine", "ray", "--max-concurrent", "0") == 2

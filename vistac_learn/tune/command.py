@@ -62,6 +62,9 @@ def _handler(args: argparse.Namespace) -> int:
             raise UserError(f"{flag}: tuned (in the search space); drop it, or take it out of "
                             "the space with --space")
     base = options_cfg(args)
+    if engine.engine == "ray" and base.device == "cuda" and trial.trial_gpus == 0:
+        raise UserError("--device cuda: with --engine ray a trial sees only the GPUs Ray gives "
+                        "it; give each one with --trial-gpus (e.g. 1)")
     check_paths(base)
     try:
         cfg = TuneCfg(out=args.out, trials=args.trials, seed=args.tune_seed)
