@@ -112,6 +112,7 @@ def drop_unstarted_run(out: Path, existed: bool) -> None:
 
 
 def _generate(args: argparse.Namespace) -> int:
+    from vistac_sim.generate.objects_report import format_summary
     from vistac_sim.generate.run import generate
 
     cfg = generate_cfg_from_args(args)
@@ -126,5 +127,6 @@ def _generate(args: argparse.Namespace) -> int:
         drop_unstarted_run(out, existed)
         raise
     summary = {k: manifest[k] for k in ("counts", "redraws", "wall_time_s")}
+    print(format_summary(manifest["per_object"]))
     print(f"wrote {args.out}: " + json.dumps(summary))
     return 0
