@@ -51,19 +51,15 @@ def analytic_table() -> pd.DataFrame:
 def contact_angles(configs: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     """Per contact (both fingers): push-to-normal and force-to-normal angles, degrees.
 
-    The normal columns are in the sensor frame (z along the finger, into the object; y across
-    it, mirrored for the thumb); the push lies in the table plane, turned by the finger's yaw on
-    the hand from the finger's direction, so in the sensor frame it is (0, +-sin yaw, cos yaw).
+    In the sensor frame the push is +z (into the object) and the columns hold the outward
+    normal, so the push-to-normal angle is the angle between z and minus the normal.
     """
     push, force = [], []
-    for sign, f in zip((1.0, -1.0), FINGERS, strict=True):
+    for f in FINGERS:
         n = configs[[f"normal_{f}_{c}" for c in "xyz"]].to_numpy()
         n = n / np.linalg.norm(n, axis=1, keepdims=True)
         F = configs[[f"force_clean_{f}_{c}" for c in "xyz"]].to_numpy()
-        yaw = (np.arctan2(configs[f"push_{f}_y"], configs[f"push_{f}_x"])
-               - np.arctan2(configs[f"approach_{f}_y"], configs[f"approach_{f}_x"])).to_numpy()
-        p = np.c_[np.zeros(len(yaw)), sign * np.sin(yaw), np.cos(yaw)]
-        push.append(np.degrees(np.arccos(np.clip(-(p * n).sum(1), -1, 1))))
+        push.append(np.degrees(np.arccos(np.clip(-n[:, 2], -1, 1))))
         cos = (F * n).sum(1) / np.linalg.norm(F, axis=1)
         force.append(np.degrees(np.arccos(np.clip(cos, -1, 1))))  # F and n both point at the pad
     return np.concatenate(push), np.concatenate(force)

@@ -24,8 +24,8 @@ class PlacementErrorCfg(Config):
 @dataclass(frozen=True)
 class PlacementError(ConfiguredEffect):
     """The finger lands off its target: per repeat, each target moves by a Gaussian world-xy
-    shift (std `position_std` m) and each finger (its direction and its push) turns by a
-    Gaussian angle (std `angle_std_deg`). A scene effect: every repeat gets its own physics solve.
+    shift (std `position_std` m) and each approach direction turns by a Gaussian angle (std
+    `angle_std_deg`). A scene effect: every repeat gets its own physics solve.
     """
 
     name: ClassVar[str] = "placement_error"
@@ -36,12 +36,9 @@ class PlacementError(ConfiguredEffect):
         shift = self.cfg.position_std * rng.standard_normal((2, 2))
         ang = np.radians(self.cfg.angle_std_deg) * rng.standard_normal(2)
         c, s = np.cos(ang), np.sin(ang)
-        def turn(a):
-            return None if a is None else unit(np.c_[c * a[:, 0] - s * a[:, 1],
-                                                     s * a[:, 0] + c * a[:, 1]])
-
-        return grasp.moved(target=grasp.target + shift, approach=turn(grasp.approach),
-                           push=turn(grasp.push))
+        a = grasp.approach
+        turned = np.c_[c * a[:, 0] - s * a[:, 1], s * a[:, 0] + c * a[:, 1]]
+        return grasp.moved(target=grasp.target + shift, approach=unit(turned))
 
 
 register_effect("placement_error", lambda cfg: [PlacementError(cfg)], cfg=PlacementErrorCfg)

@@ -36,11 +36,6 @@ class GraspCfg(Config):
         50.0, ge=0, lt=90,
         help="max degrees between the closing axis and the thumb target's surface normal "
         "(further off, a pad slides away along the surface)")
-    finger_yaw_deg: float = param(
-        30.0, ge=0, le=60,
-        help="max degrees each finger points off the closing axis (its yaw on the hand, drawn "
-        "uniformly per finger): under stick the force follows the push, so this is what leans "
-        "it in the fingertip frame")
     max_redraws: int = param(60, ge=0, le=100_000,
                              help="per configuration, before the run fails loudly")
 

@@ -4,10 +4,8 @@ The hand closes along its own direction, not along the surface normals: the inde
 drawn on the object's outline at fingertip height and the closing direction within
 `approach_spread_deg` of its inward normal; the index pushes along it, and the thumb pushes back
 along the same axis, on the outline where that axis leaves the object. The thumb's push-to-normal
-angle is thus whatever the shape gives there (up to `max_push_angle_deg`). Each finger points
-up to `finger_yaw_deg` off the closing axis (its yaw on the hand): it is drawn that way and its
-sensor frame turns with it, while the push stays on the axis. The whole finger (tip and shaft)
-must fit beside the object in its start pose, and the two fingers must not overlap.
+angle is thus whatever the shape gives there (up to `max_push_angle_deg`). The whole finger (tip
+and shaft) must fit beside the object in its start pose, and the two fingers must not overlap.
 What cannot be met is a `RejectedSample`.
 
 Grasps are drawn against the collision geometry that MuJoCo simulates: the outline is the section
@@ -157,10 +155,7 @@ class OutlineSampler:
         if off > g.max_push_angle_deg:
             raise RejectedSample("no_opposing_thumb", f"the thumb's surface is {off:.0f} deg off "
                                  f"the closing axis (limit {g.max_push_angle_deg:g})")
-        push = np.stack([close, -close])
-        turn = np.radians(g.finger_yaw_deg) * rng.uniform(-1.0, 1.0, 2)
-        c, s = np.cos(turn)[:, None], np.sin(turn)[:, None]
-        fingers = np.c_[c * push[:, :1] - s * push[:, 1:], s * push[:, :1] + c * push[:, 1:]]
-        local = Grasp(xy, yaw, np.stack([p_i[0], p_t]), np.stack([n_i[0], n_t]), fingers, push)
+        local = Grasp(xy, yaw, np.stack([p_i[0], p_t]), np.stack([n_i[0], n_t]),
+                      np.stack([close, -close]))
         self.check(local)
         return to_world(local)

@@ -60,29 +60,22 @@ def face_object(face: str, push_deg: float, finger_height: float) -> SceneObject
     return SceneObject(spec, mesh, [mesh], box(-HALF, -HALF, HALF, HALF), (0.25, 0.3, 0.7))
 
 
-def face_grasp(face: str, push_deg: float, tip_radius: float,
-               finger_yaw_deg: float = 0.0) -> Grasp:
+def face_grasp(face: str, push_deg: float, tip_radius: float) -> Grasp:
     """Index on the +x face, pushed `push_deg` off its normal (yaw for the wall, horizontal for
-    the slopes); thumb on the -x face along its normal. The index finger points
-    `finger_yaw_deg` off its push (its yaw on the hand). The index starts clear of a tilted face
+    the slopes); thumb on the -x face along its normal. The index starts clear of a tilted face
     (its target moves out by the extra reach of the tilt at the pad's height)."""
     a = np.radians(push_deg)
     if face == "wall":
         index_push, x = [-np.cos(a), np.sin(a)], HALF
     else:
         index_push, x = [-1.0, 0.0], HALF + tip_radius * (1 / np.cos(a) - 1)
-    push = np.array([index_push, [1.0, 0.0]])
-    y = np.radians(finger_yaw_deg)
-    finger = np.array([[np.cos(y) * push[0, 0] - np.sin(y) * push[0, 1],
-                        np.sin(y) * push[0, 0] + np.cos(y) * push[0, 1]], push[1]])
     return Grasp(np.zeros(2), 0.0, np.array([[x, 0.0], [-HALF, 0.0]]),
-                 np.array([[1.0, 0.0], [-1.0, 0.0]]), finger, push)
+                 np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([index_push, [1.0, 0.0]]))
 
 
 def analytic_press(face: str, push_deg: float, friction: float,
-                   cfg: GenerateCfg | None = None, finger_yaw_deg: float = 0.0) -> AnalyticPress:
-    """Press the index finger on `face` at `push_deg` off its normal and measure the angle
-    (the finger pointing `finger_yaw_deg` off its push).
+                   cfg: GenerateCfg | None = None) -> AnalyticPress:
+    """Press the index finger on `face` at `push_deg` off its normal and measure the angle.
 
     Raises:
         RejectedSample: when the press fails a check (it should not, for pushes up to 60 deg).
@@ -91,7 +84,7 @@ def analytic_press(face: str, push_deg: float, friction: float,
     cfg.physics.friction = friction
     obj = face_object(face, push_deg, cfg.hand.height)
     scene = ObjectScene(obj, cfg, render=False)
-    grasp = face_grasp(face, push_deg, cfg.hand.tip_radius, finger_yaw_deg)
+    grasp = face_grasp(face, push_deg, cfg.hand.tip_radius)
     res = scene.press.run(grasp)
     normal = surface_normals(scene.triangles, grasp, res, 2 * cfg.hand.tip_half_length)
     measured = float(angle_deg(res.force_sensor[0], res.rotation[0].T @ normal[0]))

@@ -1,8 +1,7 @@
 """The press: drive both fingertips into the object, settle, read and check the contact forces.
 
-Each tip is pushed along the hand's closing direction (`Grasp.drive`; the finger itself may
-point elsewhere, its yaw on the hand) by a constant-force drive, and hangs on two sprung slides
-across the push (`sim_assets/hand/`; the slides' axes are turned per grasp). A press has
+Each tip is pushed along its own approach direction (the hand's closing direction) by a
+constant-force drive, and hangs on two sprung slides across it (`sim_assets/hand/`). A press has
 two phases. The approach runs frictionless (MuJoCo's contact override) with the lateral slides
 held, until the pad rests on the surface. Then friction is switched on and the springs are
 released, unloaded where they are: where the push lies inside the friction cone the pad sticks
@@ -80,14 +79,9 @@ class Press:
         m.body_quat[ids.object_body] = yaw_quat(grasp.object_yaw)
         start = grasp.start(h.tip_radius, h.standoff)
         for k, f in enumerate(FINGERS):
-            yaw = np.arctan2(grasp.approach[k, 1], grasp.approach[k, 0])
             d.mocap_pos[ids.mocap[f]] = [start[k, 0], start[k, 1], h.height]
-            d.mocap_quat[ids.mocap[f]] = yaw_quat(yaw)
-            # the push slide runs along the push, the side slide across it (finger frame)
-            turn = np.arctan2(grasp.drive[k, 1], grasp.drive[k, 0]) - yaw
-            slide, side = ids.slide_joints[f]
-            m.jnt_axis[slide] = [np.cos(turn), np.sin(turn), 0.0]
-            m.jnt_axis[side] = [-np.sin(turn), np.cos(turn), 0.0]
+            d.mocap_quat[ids.mocap[f]] = yaw_quat(np.arctan2(grasp.approach[k, 1],
+                                                             grasp.approach[k, 0]))
             d.ctrl[ids.actuator[f]] = h.press_force
 
     def release(self) -> None:

@@ -1,8 +1,4 @@
-"""A grasp configuration: object pose, contact targets, finger and push directions (world frame).
-
-A finger's `approach` is where it points (its drawn axis, the fingertip's sensor frame); its
-`push` is where the hand drives it: the hand's closing axis. The two differ by the finger's yaw
-on the hand, so that under stick the force, which follows the push, leans in the sensor frame.
+"""A grasp configuration: object pose, contact targets and approach directions (world frame).
 
 Grasps are drawn by `vistac_sim.generate.grasps`, posed in the scene by the press, and moved by
 scene-stage effects (`Grasp.moved`).
@@ -25,20 +21,14 @@ class Grasp:
     object_yaw: float
     target: np.ndarray  # (2, 2) contact targets, world xy
     normal: np.ndarray  # (2, 2) outward outline normals at the targets, world xy
-    approach: np.ndarray  # (2, 2) unit finger directions (drawn axis, sensor frame), world xy
-    push: np.ndarray | None = None  # (2, 2) unit push directions, world xy (None: the approach)
-
-    @property
-    def drive(self) -> np.ndarray:
-        """(2, 2) unit directions each tip is pushed along."""
-        return self.approach if self.push is None else self.push
+    approach: np.ndarray  # (2, 2) unit approach directions, world xy
 
     def start(self, tip_radius: float, standoff: float) -> np.ndarray:
         """(2, 2) world xy of each tip's front-cap centre before the press.
 
-        The cap would touch the target after moving `standoff` along the push.
+        The cap would touch the target after moving `standoff` along the approach.
         """
-        return self.target + self.normal * tip_radius - self.drive * standoff
+        return self.target + self.normal * tip_radius - self.approach * standoff
 
     def moved(self, **changes) -> Grasp:
         return replace(self, **changes)
@@ -48,5 +38,4 @@ def to_world(g: Grasp) -> Grasp:
     """Turn a grasp drawn in the object frame into world coordinates (rotate by yaw, shift)."""
     r = rot2(g.object_yaw)
     return g.moved(target=g.target @ r.T + g.object_xy, normal=unit(g.normal @ r.T),
-                   approach=unit(g.approach @ r.T),
-                   push=None if g.push is None else unit(g.push @ r.T))
+                   approach=unit(g.approach @ r.T))

@@ -21,7 +21,6 @@ class SceneIds:
     mocap: dict[str, int]
     qpos: dict[str, int]
     dof: dict[str, int]
-    slide_joints: dict[str, tuple[int, int]]  # (push slide, side slide) joint ids: their axes
     tip_dofs: dict[str, slice]  # every dof of the tip body: the push slide, then the lateral ones
     lateral_qpos: list[int]  # qpos addresses of every lateral slide (both fingers)
     holds: list[int]  # equality ids that hold the lateral slides during the approach
@@ -46,8 +45,6 @@ class SceneIds:
             mocap={f: int(model.body_mocapid[b]) for f, b in bodies.items()},
             qpos={f: int(model.jnt_qposadr[j]) for f, j in joints.items()},
             dof={f: int(model.jnt_dofadr[j]) for f, j in joints.items()},
-            slide_joints={f: (j, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"{f}_side"))
-                          for f, j in joints.items()},
             tip_dofs={f: slice(int(model.jnt_dofadr[j]), int(model.jnt_dofadr[j]) + 1
                                + len(LATERAL_JOINTS)) for f, j in joints.items()},
             lateral_qpos=[int(model.jnt_qposadr[mujoco.mj_name2id(
