@@ -76,6 +76,7 @@ class Press:
         m, d, ids, h = self.model, self.data, self.ids, self.cfg.hand
         mujoco.mj_resetData(m, d)
         m.opt.enableflags |= _OVERRIDE  # frictionless approach (see the module's docstring)
+        m.opt.noslip_iterations = 0  # nothing to stop from slipping yet
         m.qpos_spring[self._lateral] = 0.0  # the last press moved them: same start every press
         m.body_pos[ids.object_body] = [grasp.object_xy[0], grasp.object_xy[1], 0.0]
         m.body_quat[ids.object_body] = yaw_quat(grasp.object_yaw)
@@ -94,6 +95,7 @@ class Press:
         """End of the approach: friction on, lateral springs released, unloaded where they are."""
         m, d = self.model, self.data
         m.opt.enableflags &= ~_OVERRIDE
+        m.opt.noslip_iterations = self.cfg.physics.noslip_iterations
         d.eq_active[self.ids.holds] = False
         m.qpos_spring[self._lateral] = d.qpos[self._lateral]
 
