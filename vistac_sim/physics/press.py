@@ -69,7 +69,7 @@ class Press:
         model.opt.o_solimp[:] = [*phys.solimp, 0.5, 2.0]
         model.opt.o_margin = 0.0
         self._lateral = np.array(ids.lateral_qpos)
-        self._tip_body = [int(model.geom_bodyid[ids.pad[f]]) for f in FINGERS]
+        self._finger_body = [int(model.geom_bodyid[ids.pad[f]]) for f in FINGERS]
 
     def pose(self, grasp: Grasp) -> None:
         """Reset the data and place the object and both finger bases for `grasp`."""
@@ -83,11 +83,11 @@ class Press:
         start = grasp.start(h.tip_radius, h.standoff)
         push, axis = grasp.push_dirs, grasp.approach
         for k, f in enumerate(FINGERS):
-            # The base (and its slides) points along the push; the tip turns to the finger axis.
+            # The base (and its slides) points along the push; the finger body turns to its axis.
             push_yaw = np.arctan2(push[k, 1], push[k, 0])
             d.mocap_pos[ids.mocap[f]] = [start[k, 0], start[k, 1], h.height]
             d.mocap_quat[ids.mocap[f]] = yaw_quat(push_yaw)
-            m.body_quat[self._tip_body[k]] = yaw_quat(np.arctan2(axis[k, 1], axis[k, 0])
+            m.body_quat[self._finger_body[k]] = yaw_quat(np.arctan2(axis[k, 1], axis[k, 0])
                                                       - push_yaw)
             d.ctrl[ids.actuator[f]] = h.press_force
 
