@@ -76,7 +76,8 @@ def make_cells(cfg: Sim2RealCfg, base: TrainCfg) -> list[C.Cell]:
                     freeze=cfg.freeze if init else "none")
                 cells.append(C.Cell(f"{arm}/{f:g}/{s}", {"arm": arm, "fraction": f, "seed": s},
                                     JobCfg(run, (ScoreCfg("real-test", "test"),)),
-                                    phase=1 if init else 0))
+                                    phase=1 if init else 0,
+                                    needs=f"sim-only/0/{s}" if init else None))
     return cells
 
 
