@@ -42,7 +42,7 @@ def bad_meshes(tmp_path):
 
 
 @pytest.mark.parametrize("kind, reason", [
-    ("empty", ""), ("points", "no triangles"), ("soup", "not a closed surface"),
+    ("empty", ""), ("points", "no triangles"), ("soup", "not a surface"),
     ("nan", "NaN"), ("flat", "zero volume"), ("garbage", "cannot read"),
 ])
 def test_bad_mesh_error_names_file_and_reason(bad_meshes, kind, reason):
@@ -65,8 +65,10 @@ def test_decomposition_is_cached_by_mesh_hash(tmp_path, monkeypatch):
     import coacd
 
     mesh = meshes.scale_to_footprint(_l_mesh(), 0.05)
+    (tmp_path / ".killed.npz.999999999.tmp").write_bytes(b"half")  # a killed writer's
     pieces = decomposition.convex_decomposition(mesh, tmp_path)
     assert len(pieces) >= 2 and all(p.is_convex for p in pieces)
+    assert [p.suffix for p in tmp_path.iterdir()] == [".npz"]  # no temporary outlives a write
     assert sum(p.volume for p in pieces) == pytest.approx(mesh.volume, rel=0.05)
     monkeypatch.setattr(coacd, "run_coacd", lambda *a, **k: pytest.fail("decomposed twice"))
     again = decomposition.convex_decomposition(mesh, tmp_path)
@@ -102,3 +104,141 @@ def test_example_meshes_generate(tmp_path, monkeypatch):
                  "--out", str(out), "--workers", "1", "--no-progress"]) == 0
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["skipped_meshes"] == [] and len(manifest["objects"]) == 2
+
+
+# ------------------------------------------------------------- repair, low parts, skipping (#10)
+def _open_cup(radius=20.0, height=45.0):
+    """A cylinder without its top cap: an open surface (a hole of 48 edges)."""
+    cyl = trimesh.creation.cylinder(radius=radius, height=height, sections=48)
+    keep = cyl.face_normals[:, 2] < 0.5
+    return trimesh.Trimesh(cyl.vertices, cyl.faces[keep])
+
+
+def _mushroom():
+    """A wide slab on a thin stem: at any press height the slab overhangs the fingertip's band,
+    so every finger would start inside it (no valid grasp, deterministically)."""
+    stem = trimesh.creation.box([10, 10, 14]).apply_translation([0, 0, 7])
+    slab = trimesh.creation.box([60, 60, 6]).apply_translation([0, 0, 17])
+    return trimesh.util.concatenate([stem, slab])
+
+
+def _run(args, capsys=None):
+    rc = main(["generate", "--workers", "1", "--no-progress", *map(str, args)])
+    return rc, (capsys.readouterr() if capsys else None)
+
+
+def test_open_and_badly_wound_meshes_are_repaired(tmp_path):
+    cup = _open_cup()
+    assert not cup.is_watertight
+    cup.export(tmp_path / "cup.obj")
+    mesh = meshes.load_mesh(tmp_path / "cup.obj")
+    assert mesh.is_watertight and mesh.volume > 0
+    assert "filled holes" in mesh.metadata["repairs"]
+    box = trimesh.creation.box([30, 20, 10])
+    faces = box.faces.copy()
+    faces[::2] = faces[::2, ::-1]  # half the faces wound the wrong way
+    soup = box.vertices[faces].reshape(-1, 3)  # every face with its own vertices (STL-like)
+    fixed = meshes.repair_mesh(soup, np.arange(len(soup)).reshape(-1, 3))
+    assert fixed.is_watertight and fixed.volume == pytest.approx(box.volume)
+    assert np.all((fixed.face_normals * (fixed.triangles_center - fixed.centroid)).sum(1) > 0)
+
+
+def test_mesh_that_stays_open_is_collided_through_its_decomposition(tmp_path, monkeypatch):
+    box = trimesh.creation.box([40, 30, 30])
+    a, b = box.edges_unique[0]
+    fin = len(box.vertices)  # a fin on one edge: three faces share it, no fill can close it
+    mid = box.vertices[[a, b]].mean(0)
+    verts = np.vstack([box.vertices, mid + 10 * mid / np.linalg.norm(mid)])
+    trimesh.Trimesh(verts, np.vstack([box.faces, [[a, b, fin]]]),
+                    process=False).export(tmp_path / "finned.obj")
+    mesh = meshes.load_mesh(tmp_path / "finned.obj")
+    assert not mesh.is_watertight
+    assert any("convex decomposition" in note for note in mesh.metadata["repairs"])
+    monkeypatch.setenv("VISTAC_CACHE", str(tmp_path / "cache"))
+    rc, _ = _run(["--n", "2", "--repeats", "1", "--objects", tmp_path / "finned.obj", "--out",
+                  tmp_path / "ds"])
+    assert rc == 0
+    manifest = json.loads((tmp_path / "ds" / "manifest.json").read_text())
+    assert manifest["counts"]["configs"] == 2
+    assert any("convex decomposition" in n for n in manifest["per_object"][0]["repairs"])
+    cached = list((tmp_path / "cache" / "coacd").glob("*.npz"))  # CoACD ran on the open mesh
+    assert len(cached) == 1
+
+
+def test_open_cup_generates_labels(tmp_path, monkeypatch):
+    monkeypatch.setenv("VISTAC_CACHE", str(tmp_path / "cache"))
+    _open_cup().export(tmp_path / "cup.obj")
+    rc, _ = _run(["--n", "3", "--repeats", "1", "--objects", tmp_path / "cup.obj", "--out",
+                  tmp_path / "ds"])
+    assert rc == 0
+    manifest = json.loads((tmp_path / "ds" / "manifest.json").read_text())
+    assert manifest["counts"]["configs"] == 3
+
+
+def test_flat_plate_is_pressed_at_half_its_height(tmp_path, monkeypatch):
+    from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.objects.library import ObjectSpec, build_object
+
+    monkeypatch.setenv("VISTAC_CACHE", str(tmp_path / "cache"))
+    trimesh.creation.box([60, 40, 4]).export(tmp_path / "plate.stl")
+    cfg = GenerateCfg()
+    obj = build_object(ObjectSpec("p", "mesh", 0, 0.06, 0.0, str(tmp_path / "plate.stl")),
+                       cfg.hand.height)
+    assert obj.mesh.bounds[1, 2] == pytest.approx(0.004)
+    assert obj.press_height == pytest.approx(0.002)  # not the hand's 12 mm
+    rc, _ = _run(["--n", "3", "--repeats", "2", "--objects", tmp_path / "plate.stl", "--out",
+                  tmp_path / "ds"])
+    assert rc == 0
+    manifest = json.loads((tmp_path / "ds" / "manifest.json").read_text())
+    assert manifest["per_object"][0]["presses"] == 6
+
+
+def test_object_without_valid_grasp_is_skipped_and_the_count_delivered(tmp_path, monkeypatch,
+                                                                       capsys):
+    monkeypatch.setenv("VISTAC_CACHE", str(tmp_path / "cache"))
+    folder = tmp_path / "objs"
+    folder.mkdir()
+    trimesh.creation.box([30, 20, 40]).export(folder / "box.stl")
+    _mushroom().export(folder / "mushroom.stl")
+    out = tmp_path / "ds"
+    rc, io = _run(["--n", "5", "--repeats", "2", "--objects", folder, "--out", out], capsys)
+    assert rc == 0, io.err
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["counts"]["configs"] == 5 and manifest["counts"]["presses"] == 10
+    rows = {r["path"].rsplit("/", 1)[-1]: r for r in manifest["per_object"]}
+    assert rows["mushroom.stl"]["status"] == "skipped"
+    assert "no valid grasp" in rows["mushroom.stl"]["reason"]
+    assert rows["mushroom.stl"]["rejections"] == {"unreachable": 60}
+    assert rows["box.stl"]["status"] == "used"
+    assert rows["box.stl"]["configurations"] == 5 and rows["box.stl"]["presses"] == 10
+    assert "mushroom" in io.out and "no valid grasp" in io.out  # the end-of-run summary
+    rc, io = _run(["--n", "5", "--objects", folder, "--out", tmp_path / "s", "--strict"], capsys)
+    assert rc == 2 and "mushroom.stl" in io.err and "no valid grasp" in io.err
+
+
+def test_strict_refuses_a_broken_mesh_naming_the_file(tmp_path, bad_meshes, monkeypatch, capsys):
+    monkeypatch.setenv("VISTAC_CACHE", str(tmp_path / "cache"))
+    folder = tmp_path / "objs"
+    folder.mkdir()
+    trimesh.creation.box([30, 20, 40]).export(folder / "box.stl")
+    (folder / "nan.obj").write_bytes(bad_meshes["nan"].read_bytes())
+    rc, io = _run(["--n", "2", "--objects", folder, "--out", tmp_path / "s", "--strict"], capsys)
+    assert rc == 2 and str(folder / "nan.obj") in io.err and "NaN" in io.err
+    assert "Traceback" not in io.err
+
+
+def test_manifest_lists_per_object_counts(tmp_path, monkeypatch):
+    from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.generate.run import generate
+    from vistac_sim.objects.config import ObjectsCfg
+
+    cfg = GenerateCfg(n=8, repeats=2, objects=ObjectsCfg(n_objects=3, families=("box", "L")))
+    manifest = generate(cfg, tmp_path / "ds", workers=1, progress=False)
+    rows = manifest["per_object"]
+    assert [r["object_id"] for r in rows] == [o["object_id"] for o in manifest["objects"]]
+    assert sum(r["configurations"] for r in rows) == 8
+    assert sum(r["presses"] for r in rows) == 16
+    total = sum(sum(r["rejections"].values()) for r in rows)
+    assert total == manifest["redraws"]["total"]
+    for r in rows:
+        assert r["status"] == "used" and r["presses"] == 2 * r["configurations"]

@@ -37,7 +37,7 @@ import torch
 from tqdm import tqdm
 
 from vistac.dataset import open_dataset
-from vistac.dataset.files import atomic_write_json
+from vistac.dataset.files import atomic_write_json, remove_stale_temporaries
 from vistac.errors import UserError
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import fingers_of
@@ -46,7 +46,6 @@ from vistac_learn.models.tipnet import apply_model
 from vistac_learn.train.checkpoints import (
     atomic_save,
     init_from_run,
-    remove_stale_temporaries,
     trainable_parameters,
 )
 from vistac_learn.train.config import (
@@ -121,13 +120,13 @@ def _check_resume(cfg: TrainCfg, out: Path, fingerprint: str) -> None:
     if diff:
         raise UserError(f"{out / 'config.json'}: --resume with different settings "
                         f"({', '.join(diff)})")
+    if saved["dataset"]["fingerprint"] != fingerprint:
+        raise UserError(f"--data {cfg.data}: not the dataset this run started on (its "
+                        f"fingerprint differs from {saved['dataset']['path']}'s)")
     planned = saved["train"].get("epochs")
     if cfg.schedule == "onecycle" and planned != cfg.epochs:
         raise UserError(f"--epochs {cfg.epochs}: the run's one-cycle schedule was planned for "
                         f"{planned} epochs; resume with --epochs {planned}")
-    if saved["dataset"]["fingerprint"] != fingerprint:
-        raise UserError(f"--data {cfg.data}: not the dataset this run started on (its "
-                        f"fingerprint differs from {saved['dataset']['path']}'s)")
 
 
 def _optimizer(cfg: TrainCfg, model: torch.nn.Module, steps: int):
@@ -255,7 +254,7 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
                 opt.zero_grad(set_to_none=True)
                 loss = masked_mse(apply_model(model, batch, device), y, batch["found"].to(device))
                 if not torch.isfinite(loss):
-                    raise TrainingDiverged(epoch + 1, f"training loss (batch {b + 1})",
+                    raise TrainingDiverged(epoch + 1, "training loss",
                                            float(loss.detach()), cfg.lr)
                 loss.backward()
                 opt.step()

@@ -7,6 +7,7 @@ runs it or in which order.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -15,7 +16,7 @@ from vistac.dataset import FINGERS, press_row, unit_labels
 from vistac.dataset.schema import box_columns, clean_force_columns, normal_columns
 from vistac_sim.effects.registry import Pipeline
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import ObjectScene, SceneCache, draw_grasp
+from vistac_sim.generate.scenes import NoValidGrasp, ObjectScene, SceneCache, draw_grasp
 from vistac_sim.objects.library import SceneObject
 from vistac_sim.physics.checks import RejectedSample
 from vistac_sim.physics.press import PressResult
@@ -67,16 +68,27 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
                        pipeline: Pipeline) -> Configuration:
     """Draw, press, check, label and render configuration `config_id`.
 
+    An object that gives no valid grasp in `max_redraws` draws hands the configuration on to the
+    next object of the library (in a fixed order, so the result stays a pure function of the
+    seed); its rejected draws are kept in the `failed_objects` column.
+
     Raises:
-        RuntimeError: when `max_redraws` draws in a row were rejected (names the object).
+        RuntimeError: when no object of the library gave a valid grasp.
     """
     rng = ConfigStreams(seed, config_id)
-    idx = object_index(seed, config_id, len(scenes.specs))
-    scene = scenes.get(idx)
-    try:
-        grasp, res, normal, redraws = draw_grasp(scene, rng["grasp"], cfg)
-    except RuntimeError as exc:
-        raise RuntimeError(f"configuration {config_id}: {exc}") from None
+    n_obj = len(scenes.specs)
+    first = object_index(seed, config_id, n_obj)
+    failed: dict[str, dict[str, int]] = {}
+    for j in range(n_obj):
+        scene = scenes.get((first + j) % n_obj)
+        try:
+            grasp, res, normal, redraws = draw_grasp(scene, rng["grasp"], cfg)
+            break
+        except NoValidGrasp as exc:
+            failed[exc.object_id] = dict(sorted(exc.redraws.items()))
+    else:
+        raise RuntimeError(f"configuration {config_id}: no object gave a valid grasp "
+                           f"({json.dumps(failed)})")
     if pipeline.image:  # the image, its boxes and camera columns follow the sampled view
         rgb, boxes, view_cols = render_with_effects(scene.view, scene.press.data, pipeline,
                                                     cfg.render, rng["image_effects"])
@@ -105,6 +117,7 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     row["scene_effect_fallbacks"] = fallbacks  # repeats that kept the unperturbed force
     row["redraws"] = int(sum(redraws.values()))
     row["redraw_reasons"] = ",".join(f"{k}:{v}" for k, v in sorted(redraws.items()))
+    row["failed_objects"] = json.dumps(failed) if failed else ""
     row |= view_cols
     return Configuration(
         row=row,

@@ -26,6 +26,7 @@ from vistac_sim.effects.registry import Pipeline
 from vistac_sim.generate import shards
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.configuration import Configuration, make_configuration, object_index
+from vistac_sim.generate.objects_report import screen_objects
 from vistac_sim.generate.scenes import SceneCache
 from vistac_sim.objects.decomposition import default_cache_dir
 from vistac_sim.objects.library import ObjectSpec, mesh_library, procedural_library
@@ -155,7 +156,8 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
         engine: local processes (default) or Ray tasks (`vistac_sim.generate.on_ray`).
 
     Raises:
-        UserError: bad options, bad meshes (strict), or an `out` that cannot be used.
+        UserError: bad options, bad meshes or objects without a valid grasp (strict), no
+            usable object, or an `out` that cannot be used.
     """
     t0 = time.perf_counter()
     out = Path(out)
@@ -163,6 +165,7 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
     preflight(engine)
     workers = min(workers or mp.cpu_count(), mp.cpu_count())
     specs, skipped = object_specs(cfg, cfg.seed)
+    specs, unusable, repairs = screen_objects(specs, cfg, progress)
     run_state = {"config": cfg.to_dict(), "objects": [s.__dict__ for s in specs]}
     done = shards.start_run(out, run_state, resume)
     chunks = plan_chunks(cfg.n, cfg.seed, len(specs), cfg.chunk_size)
@@ -187,6 +190,8 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
         "effects": build_pipeline(cfg.effects).describe(),
         "objects": [s.__dict__ for s in specs],
         "skipped_meshes": skipped,
+        "skipped_objects": unusable,
+        "mesh_repairs": repairs,
         "render": {"image_size": cfg.render.image_size, "view_extent_m": cfg.render.view_extent,
                    "px_per_m": cfg.render.image_size / cfg.render.view_extent,
                    "camera_xy": [0.0, 0.0]},

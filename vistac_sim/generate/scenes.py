@@ -8,6 +8,7 @@ checks its labels; `draw_grasp` draws grasps until one passes.
 from __future__ import annotations
 
 from collections import Counter, OrderedDict
+from dataclasses import replace
 
 import numpy as np
 
@@ -23,14 +24,29 @@ from vistac_sim.scene.grasp import Grasp
 from vistac_sim.scene.model import compile_scene
 
 
+class NoValidGrasp(RuntimeError):
+    """`max_redraws` draws in a row on one object were rejected; `redraws` counts the reasons."""
+
+    def __init__(self, object_id: str, redraws: Counter):
+        super().__init__(f"object {object_id} gave no valid grasp in {sum(redraws.values())} "
+                         f"draws ({dict(redraws)})")
+        self.object_id = object_id
+        self.redraws = redraws
+
+
 class ObjectScene:
-    """Everything a worker builds once per object."""
+    """Everything a worker builds once per object.
+
+    `cfg` is the run's config with the hand at the object's press height (`SceneObject`).
+    """
 
     def __init__(self, obj: SceneObject, cfg: GenerateCfg, render: bool = True):
+        if obj.press_height is not None and obj.press_height != cfg.hand.height:
+            cfg = replace(cfg, hand=replace(cfg.hand, height=obj.press_height))
         self.obj, self.cfg = obj, cfg
         self.model, self.ids = compile_scene(obj, cfg)
         self.press = Press(self.model, self.ids, cfg)
-        self.sampler = OutlineSampler(obj.section, cfg)
+        self.sampler = OutlineSampler.of(obj, cfg)
         self.triangles = TriangleIndex(obj.mesh.vertices, obj.mesh.faces)
         self.view = TopView(self.model, self.ids, cfg.render,
                             shadow_size=shadow_map_size(cfg.effects)) if render else None
@@ -52,7 +68,7 @@ class SceneCache:
             self._scenes.move_to_end(index)
             return self._scenes[index]
         obj = build_object(self.specs[index], self.cfg.hand.height, self.cfg.objects.min_wall,
-                           self.cache_dir)
+                           self.cache_dir, self.cfg.objects.min_height)
         scene = ObjectScene(obj, self.cfg)
         self._scenes[index] = scene
         if len(self._scenes) > self.size:
@@ -89,7 +105,7 @@ def draw_grasp(scene: ObjectScene, rng: np.random.Generator,
         The grasp, its press, the sensor-frame surface normals and the rejected draws by reason.
 
     Raises:
-        RuntimeError: when `max_redraws` draws in a row were rejected (names the object).
+        NoValidGrasp: when `max_redraws` draws in a row were rejected (names the object).
     """
     redraws: Counter = Counter()
     for _ in range(cfg.grasp.max_redraws):
@@ -98,5 +114,4 @@ def draw_grasp(scene: ObjectScene, rng: np.random.Generator,
             return (grasp, *solve(scene, grasp, cfg), redraws)
         except RejectedSample as exc:
             redraws[exc.reason] += 1
-    raise RuntimeError(f"object {scene.obj.object_id} gave no valid grasp in "
-                       f"{cfg.grasp.max_redraws} draws ({dict(redraws)})")
+    raise NoValidGrasp(scene.obj.object_id, redraws)

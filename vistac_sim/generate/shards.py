@@ -120,9 +120,16 @@ def finalize(out: Path, n_chunks: int, manifest: dict, split_by: str, fractions,
         for item in filter(None, text.split(",")):
             name, count = item.split(":")
             reasons[name] = reasons.get(name, 0) + int(count)
+    from vistac_sim.generate.objects_report import object_summary
+
+    per_object = object_summary(cfg_df, prs_df, manifest.get("objects", []),
+                                manifest.get("skipped_meshes", [])
+                                + manifest.get("skipped_objects", []),
+                                manifest.get("mesh_repairs"))
     manifest = {**manifest, "format_version": FORMAT_VERSION, "complete": True, "counts": counts,
                 "redraws": {"total": int(cfg_df["redraws"].sum()),
-                            "by_reason": dict(sorted(reasons.items()))}}
+                            "by_reason": dict(sorted(reasons.items()))},
+                "per_object": per_object}
     write_manifest(out, manifest)
     shutil.rmtree(out / PARTIAL, ignore_errors=True)
     return manifest

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 from vistac.config import Config, ConfigError, param
 from vistac_sim.objects.outlines import PROCEDURAL_FAMILIES
@@ -25,6 +26,10 @@ class ObjectsCfg(Config):
         help="longest top-view side of objects, metres")
     height: tuple[float, float] = param((0.03, 0.05), gt=0, le=1,
                                         help="m, extrusion height of procedural objects")
+    min_height: float = param(0.002, gt=0,
+                              help="m, lowest object (after scaling) that can be pressed; flat "
+                              "parts lower than twice the fingertip height are pressed at half "
+                              "their height")
     min_wall: float = param(0.001, gt=0, help="m, thinnest wall a procedural outline may have")
     strict: bool = param(False, help="a bad mesh in a folder aborts the run instead of being "
                          "skipped")
@@ -37,3 +42,6 @@ class ObjectsCfg(Config):
                 raise ConfigError(name, f"MIN must be <= MAX, got {lo:g} > {hi:g}")
         if not self.families:
             raise ConfigError("families", "needs at least one family")
+        # stored absolute: a manifest names the same files wherever the run is resumed from
+        absolute = tuple(str(Path(p).expanduser().resolve()) for p in self.paths)
+        object.__setattr__(self, "paths", absolute)

@@ -4,6 +4,11 @@ An object is described by a light, picklable `ObjectSpec` (what to build) and bu
 `SceneObject` (meshes in the object frame: xy centred on the footprint, table at z = 0) inside the
 worker that needs it. The full-resolution mesh stays the visual and the reference for surface
 normals; MuJoCo collides the convex `pieces` (it would otherwise collide a mesh as its hull).
+
+Press height: the fingertip axis runs at `HandCfg.height` (12 mm), or at half the object's height
+for an object lower than twice that, so flat and low parts (plates, a tube lying down) are
+pressed on the middle of their side walls (the table does not collide with the fingers). Objects
+lower than `ObjectsCfg.min_height` are refused.
 """
 
 from __future__ import annotations
@@ -20,8 +25,8 @@ from shapely.geometry import Polygon
 from vistac.errors import UserError
 from vistac_sim.objects import outlines
 from vistac_sim.objects.config import ObjectsCfg
-from vistac_sim.objects.decomposition import convex_decomposition
-from vistac_sim.objects.meshes import find_mesh_files, load_mesh, mesh_section, scale_to_footprint
+from vistac_sim.objects.decomposition import convex_decomposition, pieces_section
+from vistac_sim.objects.meshes import find_mesh_files, load_mesh, scale_to_footprint
 
 
 @dataclass(frozen=True)
@@ -43,8 +48,10 @@ class SceneObject:
     spec: ObjectSpec
     mesh: trimesh.Trimesh  # full-resolution, object frame
     pieces: list[trimesh.Trimesh]  # convex collision pieces, object frame
-    section: Polygon  # cross-section at fingertip height (object frame, xy)
+    section: Polygon  # cross-section at the press height (object frame, xy)
     rgb: tuple[float, float, float]
+    press_height: float | None = None  # m, fingertip axis above the table (None: the hand's)
+    vertical_walls: bool = True  # the pieces' section is the same at every height (extrusions)
 
     @property
     def object_id(self) -> str:
@@ -70,19 +77,43 @@ def procedural_library(cfg: ObjectsCfg, seed: int) -> list[ObjectSpec]:
     return specs
 
 
+def press_height(object_height: float, finger_height: float, min_height: float = 0.002,
+                 name: str = "object") -> float:
+    """Height of the fingertip axis for an object of `object_height` (module docstring).
+
+    Raises:
+        UserError: the object is lower than `min_height`.
+    """
+    if object_height < min_height:
+        raise UserError(f"{name}: too low to press ({object_height * 1000:.2f} mm < "
+                        f"{min_height * 1000:g} mm, objects.min_height)")
+    return min(finger_height, object_height / 2)
+
+
 def build_object(spec: ObjectSpec, finger_height: float, min_wall: float = 0.001,
-                 cache_dir: Path | None = None) -> SceneObject:
-    """Build the meshes, collision pieces and finger-height section of one object."""
+                 cache_dir: Path | None = None, min_height: float = 0.002) -> SceneObject:
+    """Build the meshes, collision pieces and press-height section of one object.
+
+    A mesh's section is the section of its collision pieces (what the fingers will touch).
+    """
     rng = np.random.default_rng(spec.seed)
     rgb = _object_colour(rng)
-    if spec.family == "mesh":
-        mesh = scale_to_footprint(load_mesh(spec.path), spec.footprint)
-        section = mesh_section(mesh, finger_height, spec.path)
-        pieces = convex_decomposition(mesh, cache_dir)
-    else:
+    if spec.family != "mesh":
         poly = outlines.outline(spec.family, rng, spec.footprint, min_wall)
-        return extruded_object(spec, poly, rgb)
-    return SceneObject(spec=spec, mesh=mesh, pieces=pieces, section=section, rgb=rgb)
+        obj = extruded_object(spec, poly, rgb)
+        obj.press_height = press_height(spec.height, finger_height, min_height, spec.object_id)
+        return obj
+    mesh = scale_to_footprint(load_mesh(spec.path), spec.footprint)
+    z = press_height(float(mesh.bounds[1, 2]), finger_height, min_height, spec.path)
+    pieces = convex_decomposition(mesh, cache_dir)
+    section = pieces_section(pieces, z)
+    if section.is_empty:
+        raise UserError(f"{spec.path}: its collision pieces have no section at the press height "
+                        f"({z * 1000:.1f} mm)")
+    if section.geom_type != "Polygon":
+        section = max(section.geoms, key=lambda g: g.area)
+    return SceneObject(spec=spec, mesh=mesh, pieces=pieces, section=section, rgb=rgb,
+                       press_height=z, vertical_walls=False)
 
 
 def extruded_object(spec: ObjectSpec, poly: Polygon,
@@ -117,7 +148,7 @@ def mesh_library(cfg: ObjectsCfg, seed: int, finger_height: float,
                           seed=int(rng.integers(2**31)), footprint=footprint, height=0.0,
                           path=str(f.resolve()))
         try:
-            build_object(spec, finger_height, cache_dir=cache_dir)
+            build_object(spec, finger_height, cache_dir=cache_dir, min_height=cfg.min_height)
         except UserError as exc:
             if cfg.strict or len(files) == 1:
                 raise

@@ -1,5 +1,14 @@
-"""User meshes: finding, reading and checking them, scaling to a footprint, the finger-height
-section."""
+"""User meshes: finding, reading, checking and repairing them, scaling to a footprint, the
+section at a height.
+
+What is truly broken (unreadable, no triangles, NaN or infinite vertices, flat, a triangle soup
+that is no surface) is refused with the file named. Everything else is repaired: duplicate
+vertices merged (at 1e-6 of the mesh's size), degenerate and repeated faces dropped, holes closed
+with a fan of triangles, winding made consistent and the normals turned outwards. A mesh that
+stays open after that is still used: it is collided through its convex decomposition (which needs
+no closed surface) and its faces, oriented outwards as well as they can be, give the normals.
+`mesh.metadata["repairs"]` lists what was done.
+"""
 
 from __future__ import annotations
 
@@ -15,6 +24,7 @@ from shapely.geometry import Polygon
 from vistac.errors import UserError
 
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".glb", ".gltf", ".off")
+MIN_SHARED_EDGES = 0.5  # an open surface joins most of its edges to two faces; a soup does not
 
 
 def find_mesh_files(paths: list[str] | tuple[str, ...]) -> list[Path]:
@@ -34,11 +44,11 @@ def find_mesh_files(paths: list[str] | tuple[str, ...]) -> list[Path]:
 
 
 def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
-    """Read and check one mesh file.
+    """Read, check and repair one mesh file.
 
     Raises:
         UserError: naming the file and the reason: unreadable format, points only, empty,
-            non-finite vertices, zero volume, or not a closed surface (open or non-manifold soup).
+            non-finite vertices, zero volume, or a triangle soup that forms no surface.
     """
     path = Path(path)
     try:
@@ -49,26 +59,101 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
         raise UserError(f"{path}: cannot read mesh ({type(exc).__name__}: {exc})") from None
     if not isinstance(loaded, trimesh.Trimesh):
         raise UserError(f"{path}: holds no triangles (points or lines only)")
-    mesh = loaded
-    if len(mesh.faces) == 0:
+    if len(loaded.faces) == 0:
         raise UserError(f"{path}: empty mesh (no triangles)")
-    if not np.isfinite(mesh.vertices).all():
+    if not np.isfinite(loaded.vertices).all():
         raise UserError(f"{path}: vertex coordinates are NaN or infinite")
-    mesh = trimesh.Trimesh(mesh.vertices, mesh.faces, process=True)  # merge duplicate vertices
-    ext = mesh.extents
-    if ext.min() <= 1e-9 * max(ext.max(), 1e-30):
-        raise UserError(f"{path}: zero volume (the mesh is flat or degenerate)")
-    soup = f"{path}: not a closed surface (open or non-manifold triangle soup)"
-    was_open = not mesh.is_watertight
-    if was_open:
-        trimesh.repair.fill_holes(mesh)  # small holes only; a soup stays open or encloses nothing
-    if not mesh.is_watertight or not mesh.is_winding_consistent:
-        raise UserError(soup)
-    if mesh.volume < 0:
-        mesh.invert()
-    if abs(mesh.volume) <= 1e-9 * ext.prod():
-        raise UserError(soup if was_open else f"{path}: zero volume (the mesh encloses no space)")
+    return repair_mesh(loaded.vertices, loaded.faces, str(path))
+
+
+def repair_mesh(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh") -> trimesh.Trimesh:
+    """A checked, repaired mesh from raw arrays (see the module's docstring).
+
+    Raises:
+        UserError: "zero volume" (flat or degenerate) or "not a surface" (triangle soup).
+    """
+    mesh = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces), process=False)
+    notes: list[str] = []
+    size = float(mesh.extents.max()) if len(mesh.vertices) else 0.0
+    n_vert = len(mesh.vertices)
+    if size > 0:
+        mesh.merge_vertices(merge_tex=True, merge_norm=True,
+                            digits_vertex=int(np.floor(-np.log10(1e-6 * size))))
+    n_face = len(mesh.faces)
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.update_faces(mesh.unique_faces())
+    mesh.remove_unreferenced_vertices()
+    if len(mesh.vertices) < n_vert:
+        notes.append(f"merged {n_vert - len(mesh.vertices)} duplicate vertices")
+    if len(mesh.faces) < n_face:
+        notes.append(f"dropped {n_face - len(mesh.faces)} degenerate or repeated faces")
+    ext = mesh.extents if len(mesh.faces) else np.zeros(3)
+    if len(mesh.faces) == 0 or ext.min() <= 1e-9 * max(ext.max(), 1e-30):
+        raise UserError(f"{name}: zero volume (the mesh is flat or degenerate)")
+    shared = float(np.mean(np.bincount(mesh.edges_unique_inverse) == 2))
+    if shared < MIN_SHARED_EDGES:
+        raise UserError(f"{name}: not a surface (triangle soup: only {100 * shared:.0f} % of "
+                        "edges join two faces)")
+    if not mesh.is_watertight:
+        filled = _fill_holes(mesh)
+        if filled is not None:
+            mesh = filled
+            notes.append("filled holes")
+    before = mesh.faces.copy()
+    trimesh.repair.fix_winding(mesh)
+    if mesh.is_watertight and mesh.is_winding_consistent:
+        if mesh.volume < 0:
+            mesh.invert()
+        if abs(mesh.volume) <= 1e-9 * ext.prod():
+            raise UserError(f"{name}: zero volume (the mesh encloses no space)")
+    else:
+        _orient_outwards(mesh)
+        notes.append("open surface: collided through its convex decomposition")
+    if not np.array_equal(before, mesh.faces):
+        notes.append("fixed winding / normals")
+    mesh.metadata["repairs"] = notes
     return mesh
+
+
+def _fill_holes(mesh: trimesh.Trimesh) -> trimesh.Trimesh | None:
+    """Close every hole with a fan of triangles around its centroid; None if it stays open.
+
+    A boundary edge a->b of a face gets the fill face (b, a, c), so the fill is wound like its
+    neighbours.
+    """
+    directed = mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    key = np.sort(directed, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    boundary = directed[counts[inverse.ravel()] == 1]
+    if len(boundary) == 0:
+        return None
+    loops = trimesh.graph.connected_components(boundary, min_len=3)
+    verts = [mesh.vertices]
+    faces = [mesh.faces]
+    for loop in loops:
+        centre = len(mesh.vertices) + len(verts) - 1
+        verts.append(mesh.vertices[loop].mean(axis=0)[None])
+        edges = boundary[np.isin(boundary[:, 0], loop)]
+        faces.append(np.c_[edges[:, 1], edges[:, 0], np.full(len(edges), centre)])
+    out = trimesh.Trimesh(np.concatenate(verts), np.concatenate(faces), process=False)
+    if not (out.is_watertight and out.is_winding_consistent):
+        return None
+    return out
+
+
+def _orient_outwards(mesh: trimesh.Trimesh) -> None:
+    """Flip each connected piece of an open mesh whose faces mostly face its own centre."""
+    groups = trimesh.graph.connected_components(mesh.face_adjacency,
+                                                nodes=np.arange(len(mesh.faces)))
+    centres, normals, areas = mesh.triangles_center, mesh.face_normals, mesh.area_faces
+    flip = np.zeros(len(mesh.faces), bool)
+    for g in groups:
+        c = np.average(centres[g], axis=0, weights=areas[g] + 1e-30)
+        if np.sum(((centres[g] - c) * normals[g]).sum(1) * areas[g]) < 0:
+            flip[g] = True
+    if flip.any():
+        mesh.faces[flip] = mesh.faces[flip][:, ::-1]
+        mesh._cache.clear()
 
 
 def scale_to_footprint(mesh: trimesh.Trimesh, footprint: float) -> trimesh.Trimesh:

@@ -52,6 +52,8 @@ def surface_normals(triangles: TriangleIndex, grasp: Grasp, res: PressResult,
                                               around=rot.T @ (np.asarray(pos) - origin))
             if np.all(face_n @ face_n[0] > _FLAT_COS):
                 n = rot @ face_n[0]
+                if n @ (centre - (rot @ q_obj + origin)) < 0:  # an open mesh seen from behind
+                    n = -n
             else:
                 n = unit(centre - (rot @ q_obj + origin))
             out[k] += max(weight, 1e-12) * n
