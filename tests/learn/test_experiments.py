@@ -192,3 +192,31 @@ def test_bad_input_is_one_line(data, tmp_path, capsys, args, message):
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "Traceback" not in err and message in err, err
     assert not out.exists()  # nothing written
+
+
+def test_a_cell_whose_pretrained_run_diverged_is_skipped(tmp_path):
+    """Phases run in order; a diverged job is a row, and a cell that starts from it is not
+    trained (a fake job stands in for training)."""
+    from vistac_learn.experiments.cells import Cell, run_cells
+    from vistac_learn.train.config import protocol_cfg
+    from vistac_learn.train.job import JobCfg, JobResult, LocalRunner
+    from vistac_learn.train.loop import TrainingDiverged
+
+    ran = []
+
+    def job(cfg):
+        ran.append(cfg.train.out)
+        if cfg.train.out.endswith("a"):
+            raise TrainingDiverged(1, "training loss", float("nan"), 1.0)
+        return JobResult(cfg.train.out, 1.0, 1, 1, 0.5)
+
+    def cell(key, phase=0, needs=None):
+        return Cell(key, {"name": key}, JobCfg(protocol_cfg("default", "d", key)), phase, needs)
+
+    cells = [cell("b", 1, needs="a"), cell("a"), cell("c", 1, needs="d"), cell("d")]
+    rows = run_cells(tmp_path, cells, ("x",), lambda c, r: {"x": r.objective}, lambda rows: None,
+                     LocalRunner(job, (TrainingDiverged,)), progress=False)
+    assert ran == ["a", "d", "c"]
+    assert [(r["cell"], r["status"]) for r in rows] == [
+        ("b", "skipped"), ("a", "diverged"), ("c", "ok"), ("d", "ok")]
+    assert [r["cell"] for r in _rows(tmp_path / "cells.csv")] == ["b", "a", "c", "d"]

@@ -48,12 +48,16 @@ class Cell:
         fields: Its identity columns in ``cells.csv`` (e.g. arm, fraction, seed).
         job: The training job.
         phase: Cells of a phase start after every cell of the phases before has finished.
+        needs: Key of a cell of an earlier phase whose run this one starts from; when that
+            cell did not finish ``ok`` (its loss diverged), this one is not trained: its row
+            says ``skipped``.
     """
 
     key: str
     fields: dict[str, Any]
     job: JobCfg
     phase: int = 0
+    needs: str | None = None
 
 
 def check_folder(out: Path, meta: dict[str, Any], kind: str) -> None:
@@ -158,7 +162,16 @@ def run_cells(out: Path, cells: Sequence[Cell], columns: Sequence[str],
     if rows:
         on_rows(ordered())
     for phase in sorted({c.phase for c in todo}):
-        batch = [c for c in todo if c.phase == phase]
+        batch = []
+        for c in (c for c in todo if c.phase == phase):
+            if c.needs in rows and rows[c.needs]["status"] != "ok":
+                rows[c.key] = {"cell": c.key, **c.fields, **dict.fromkeys(columns, math.nan),
+                               "status": "skipped", "best_epoch": 0, "seconds": 0.0,
+                               "run": ""}
+                write_rows(path, ordered(), header)
+                bar.update(1)
+            else:
+                batch.append(c)
 
         def jobs(batch=batch) -> Iterator[JobCfg]:
             for c in batch:

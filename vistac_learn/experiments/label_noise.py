@@ -259,14 +259,16 @@ def finding(summary: list[dict]) -> str:
     a, b = lo["clean_angle_deg_mean"], hi["clean_angle_deg_mean"]
     means = [s["clean_angle_deg_mean"] for s in done]
     steady = all(y >= x for x, y in zip(means, means[1:], strict=False))
+    label = hi["label_angle_deg_mean"]
+    scale = "far smaller than" if 2 * abs(b - a) < label else "of the order of"
     shape = ("growing at every step" if steady else "not monotone over the levels (compare "
              "the steps with the spread over seeds)")
     return (f"**Finding**: from noise level {lo['level']:g} to {hi['level']:g} the median angle "
             f"to the clean label goes from {C.pm(a, lo['clean_angle_deg_std'])} to "
             f"{C.pm(b, hi['clean_angle_deg_std'])} deg ({b - a:+.1f} deg, "
-            f"{(b / a - 1) * 100 if a > 0 else float('nan'):+.0f} %), {shape}; the labels "
-            f"themselves move by {hi['label_angle_deg_mean']:.1f} deg at level "
-            f"{hi['level']:g}.")
+            f"{(b / a - 1) * 100 if a > 0 else float('nan'):+.0f} %), {shape}. At level "
+            f"{hi['level']:g} the noisy labels themselves lie {label:.1f} deg from the clean "
+            f"ones: the model's loss of accuracy is {scale} the noise in its labels.")
 
 
 def resolved(cfg: LabelNoiseCfg) -> LabelNoiseCfg:

@@ -46,6 +46,10 @@ def plot_sim2real(summary: list[dict], path: Path) -> None:
         ax.axhline(ys[0], color="tab:red", ls="--", label="sim only (zero-shot)")
         ax.axhspan(ys[0] - es[0], ys[0] + es[0], color="tab:red", alpha=0.12)
     ax.set_xscale("log")
+    values = [s["test_angle_deg_mean"] for s in summary
+              if math.isfinite(s["test_angle_deg_mean"]) and s["test_angle_deg_mean"] > 0]
+    if values and max(values) > 10 * min(values):  # an untrained model would hide the rest
+        ax.set_yscale("log")
     ticks = sorted({s["fraction"] for s in summary if s["arm"] != "sim-only"})
     if ticks:
         ax.minorticks_off()
