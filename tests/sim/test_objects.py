@@ -71,6 +71,10 @@ def test_decomposition_is_cached_by_mesh_hash(tmp_path, monkeypatch):
     monkeypatch.setattr(coacd, "run_coacd", lambda *a, **k: pytest.fail("decomposed twice"))
     again = decomposition.convex_decomposition(mesh, tmp_path)
     assert len(again) == len(pieces)
+    bigger = decomposition.convex_decomposition(meshes.scale_to_footprint(_l_mesh(), 0.07),
+                                                tmp_path)  # another footprint: same cache entry
+    assert sum(p.volume for p in bigger) == pytest.approx(
+        sum(p.volume for p in pieces) * 1.4**3, rel=1e-6)
 
 
 def test_generate_skips_bad_meshes_in_a_folder_and_strict_aborts(tmp_path, bad_meshes,
@@ -240,3 +244,28 @@ def test_manifest_lists_per_object_counts(tmp_path, monkeypatch):
     assert total == manifest["redraws"]["total"]
     for r in rows:
         assert r["status"] == "used" and r["presses"] == 2 * r["configurations"]
+
+
+def test_configuration_moves_on_when_its_object_fails_during_the_run(tmp_path, monkeypatch):
+    from collections import Counter
+
+    from vistac_sim.generate import configuration
+    from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.generate.run import generate
+    from vistac_sim.generate.scenes import NoValidGrasp
+    from vistac_sim.objects.config import ObjectsCfg
+
+    real = configuration.draw_grasp
+
+    def flaky(scene, rng, cfg):  # the first object passes the screen, then never again
+        if scene.obj.object_id.endswith("_000"):
+            raise NoValidGrasp(scene.obj.object_id, Counter(no_contact=60))
+        return real(scene, rng, cfg)
+
+    monkeypatch.setattr(configuration, "draw_grasp", flaky)
+    cfg = GenerateCfg(n=6, repeats=1, objects=ObjectsCfg(n_objects=2, families=("box",)))
+    manifest = generate(cfg, tmp_path / "ds", workers=1, progress=False)
+    assert manifest["counts"]["configs"] == 6
+    first, second = manifest["per_object"]
+    assert first["configurations"] == 0 and first["rejections"]["no_contact"] % 60 == 0
+    assert first["rejections"]["no_contact"] > 0 and second["configurations"] == 6

@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 
 # Heights across the tip (fractions of its radius above and below the axis) where the collision
 # pieces of a mesh are sliced for the "finger fits" check.
-CLEARANCE_LEVELS = (-0.95, -0.8, -0.5, 0.5, 0.8, 0.95)
+CLEARANCE_LEVELS = (-0.95, -0.85, -0.7, -0.5, -0.25, 0.25, 0.5, 0.7, 0.85, 0.95)
 
 
 class OutlineSampler:
