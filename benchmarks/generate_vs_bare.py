@@ -64,6 +64,8 @@ def _bare_worker(args: tuple[int, int, int, str, int]) -> int:
         scene, grasp = scenes[i % len(scenes)], grasps[i % len(scenes)]
         m, d = scene.model, scene.press.data
         scene.press.pose(grasp)  # reset + mocap poses + drive
+        mujoco.mj_step(m, d, nstep=cfg.physics.approach_steps)  # the press's two phases
+        scene.press.release()
         mujoco.mj_step(m, d, nstep=cfg.physics.settle_steps)
         total = 0.0
         for c in range(d.ncon):

@@ -124,8 +124,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in args.tip_models:
         entries.append(run_entry(data, args.out, f"{name}, tip view, default recipe",
                                  "default", progress, model=name))
-    extra = (("MACs/sample", "macs"), ("train s", "train_s"), ("wall s", "wall_s"), ("CPU s", "cpu_s"),
-             ("epochs", "epochs"), ("best", "best_epoch"))
+    extra = (("MACs/sample", "macs"), ("train s", "train_s"), ("wall s", "wall_s"),
+             ("CPU s", "cpu_s"), ("epochs", "epochs"), ("best", "best_epoch"))
     md = table(entries, extra)
     plot(entries, args.out / "learn_default.png")
     save(args.out, "learn_default", {"dataset": str(data), "machine": machine(),

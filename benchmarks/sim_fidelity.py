@@ -117,6 +117,9 @@ def label_error(labels: np.ndarray, ref: np.ndarray) -> dict:
 def with_physics(cfg: GenerateCfg, timestep: float, settle_steps: int) -> GenerateCfg:
     c = copy.deepcopy(cfg)
     c.physics.timestep, c.physics.settle_steps = timestep, max(1, int(round(settle_steps)))
+    # The approach phase scales with the settling phase (the same simulated time per phase).
+    c.physics.approach_steps = max(1, int(round(
+        cfg.physics.approach_steps * settle_steps / cfg.physics.settle_steps)))
     return c
 
 

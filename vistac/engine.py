@@ -1,6 +1,7 @@
 """Where the work of `generate` and `tune` runs: local processes, or Ray tasks on a cluster.
 
-`EngineCfg` holds the options (``--engine``, ``--ray-address``, ``--max-concurrent``);
+`EngineCfg` holds the options (``--engine``, ``--ray-address``, ``--max-concurrent``, and
+for `generate` ``--ray-writes``);
 `ray_session` starts a local Ray instance (or joins a cluster) for the length of a run;
 `RayRunner` runs a batch of job configs as Ray tasks. Ray does the scheduling, the resource
 accounting (each task asks for ``num_cpus``), the retries of tasks whose worker died
@@ -27,6 +28,7 @@ from vistac.config import Config, ConfigError, param
 from vistac.errors import UserError
 
 ENGINE_OPTIONS = ("engine", "ray_address", "max_concurrent")
+WRITES_OPTIONS = ("ray_writes",)  # `generate` only: who writes what the tasks make
 LOCAL_OBJECT_STORE_BYTES = 128 * 2**20  # a local instance's object store: results are small
 
 
@@ -43,6 +45,11 @@ class EngineCfg(Config):
     max_concurrent: int | None = param(
         None, ge=1, metavar="K", help="with --engine ray: at most K tasks at once (default: "
         "as many as the cluster has CPUs)")
+    ray_writes: Literal["driver", "workers"] = param(
+        "driver", help="with --engine ray: who writes each chunk's images and shard. driver: "
+        "the tasks send them back, no shared filesystem needed, one process writes it all; "
+        "workers: each task writes into --out, which must then be a folder every node shares "
+        "(the driver stops being the limit on a large cluster)")
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -50,6 +57,8 @@ class EngineCfg(Config):
             for key in ("ray_address", "max_concurrent"):
                 if getattr(self, key) is not None:
                     raise ConfigError(key, "needs --engine ray")
+            if self.ray_writes != "driver":
+                raise ConfigError("ray_writes", "needs --engine ray")
 
     @property
     def address(self) -> str | None:

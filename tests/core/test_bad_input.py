@@ -61,6 +61,7 @@ CASES = [
     Case("gen-image-size-0", G + " --image-size 0", "--image-size"),
     Case("gen-image-size-7", G + " --image-size 7", "--image-size"),
     Case("gen-image-size-huge", G + " --image-size 5000", "--image-size"),
+    Case("gen-image-size-tip-too-small", G + " --image-size 20", "--image-size"),
     Case("gen-image-size-text", G + " --image-size big", "--image-size"),
     Case("gen-chunk-size-0", G + " --chunk-size 0", "--chunk-size"),
     Case("gen-n-objects-0", G + " --n-objects 0", "--n-objects"),

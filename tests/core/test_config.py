@@ -114,3 +114,12 @@ def test_a_default_config_tree_round_trips_through_json_like_dicts():
     t = apply(Tree(), {"part": {"fingers": ["index", "thumb"]}, "name": "x"})
     again = apply(Tree(), to_dict(t))
     assert again == t and dataclasses.asdict(again) == dataclasses.asdict(t)
+
+
+def test_mesh_paths_are_stored_absolute(tmp_path, monkeypatch):
+    from vistac_sim.objects.config import ObjectsCfg
+
+    monkeypatch.chdir(tmp_path)
+    cfg = ObjectsCfg(paths=("meshes/a.stl", "~/b.obj"))
+    assert cfg.paths == (str(tmp_path / "meshes" / "a.stl"),
+                         str((tmp_path.home() / "b.obj").resolve()))

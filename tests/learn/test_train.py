@@ -179,3 +179,12 @@ def test_sigkilled_process_resumes_identically(ds_dir, tmp_path):
     assert len(_rows(cut)) < 4
     assert main(["train", *argv, "--out", str(cut), "--resume"]) == 0
     _same_metrics(ref, cut, atol=1e-7)
+
+
+@pytest.mark.parametrize("epochs,batch_size", [(1, 64), (2, 64), (2, 2)])
+def test_one_cycle_schedule_of_very_few_steps(ds_dir, tmp_path, epochs, batch_size):
+    """A one-cycle run of 1, 2 or a few optimiser steps trains (torch's schedule needs a
+    warm-up of more than one step; a tiny fraction of the data gives such runs)."""
+    run = train(_cfg(ds_dir, tmp_path / "r", schedule="onecycle", epochs=epochs,
+                     batch_size=batch_size, n_rotations=1), progress=False)
+    assert len(_rows(run)) == epochs

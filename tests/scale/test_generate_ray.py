@@ -12,7 +12,9 @@ import time
 import pytest
 
 from vistac.cli import main
+from vistac.errors import UserError
 from vistac_sim.generate import on_ray
+from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.run import plan_chunks
 
 ARGS = ["--n", "18", "--seed", "5", "--noise", "0.05", "--n-objects", "3", "--chunk-size", "3",
@@ -49,6 +51,31 @@ def test_ray_engine_writes_the_bytes_of_the_local_engine(ray_local, local_refere
     assert manifest["engine"] == "ray" and manifest["complete"]
 
 
+def test_workers_writing_into_the_shared_folder_write_the_same_bytes(ray_local, local_reference,
+                                                                   tmp_path, monkeypatch):
+    made = []
+    monkeypatch.setattr(on_ray, "commit_chunk", lambda *a: made.append(a))  # not the driver's
+    assert _gen(tmp_path / "w", "--engine", "ray", "--ray-writes", "workers") == 0
+    assert made == []
+    _assert_same_dataset(local_reference, tmp_path / "w")
+    assert not (tmp_path / "w" / ".partial").exists()  # the marker went with it
+
+
+def test_a_worker_writes_only_into_the_drivers_folder_with_its_versions(tmp_path):
+    versions = {"mujoco": "1", "numpy": "2", "trimesh": "3"}
+    (tmp_path / ".partial").mkdir()
+    (tmp_path / ".partial" / "shared-ab").touch()
+    job = on_ray.ChunkJob(GenerateCfg(), (), str(tmp_path), "shared-ab",
+                          tuple(sorted(versions.items())))
+    job.check_writable("node1", versions)
+    with pytest.raises(UserError, match="node node2 runs .* this driver"):
+        job.check_writable("node2", versions | {"numpy": "9"})
+    other = on_ray.ChunkJob(GenerateCfg(), (), str(tmp_path), "shared-cd",
+                            tuple(sorted(versions.items())))
+    with pytest.raises(UserError, match="node node3 does not see the driver's --out"):
+        other.check_writable("node3", versions)
+
+
 def test_killed_ray_driver_then_resume_equals_local(ray_local, local_reference, tmp_path,
                                                     monkeypatch):
     """A second driver joins the running instance by address and is killed with SIGKILL after
@@ -82,6 +109,8 @@ def test_engine_options_are_checked_before_the_output_is_touched(tmp_path, capsy
     out = tmp_path / "d"
     assert _gen(out, "--ray-address", "127.0.0.1:6379") == 2
     assert "--ray-address: needs --engine ray" in capsys.readouterr().err
+    assert _gen(out, "--ray-writes", "workers") == 2
+    assert "--ray-writes: needs --engine ray" in capsys.readouterr().err
     assert _gen(out, "--engine", "ray", "--max-concurrent", "0") == 2
     assert "--max-concurrent: must be >= 1" in capsys.readouterr().err
     assert _gen(out, "--engine", "ray", "--ray-address", "127.0.0.1:1") == 2

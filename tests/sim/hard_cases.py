@@ -8,6 +8,7 @@ full-resolution mesh normal) and reports the outcome. `test_hard_cases.py` runs 
 
 from __future__ import annotations
 
+import copy
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -87,6 +88,44 @@ def _grazing(cfg):
         approach=unit(np.array([[-np.cos(ang), np.sin(ang)], [1.0, 0.0]])))
 
 
+def _wall_push(push_deg: float) -> tuple[SceneObject, Grasp]:
+    """The 50 mm box; the index pushes its +x face `push_deg` off the normal (yaw), the thumb
+    pushes the -x face along its normal."""
+    a = np.radians(push_deg)
+    return _extrusion("box50", box(-0.025, -0.025, 0.025, 0.025)), _pinch_x(0.025).moved(
+        approach=unit(np.array([[-np.cos(a), np.sin(a)], [1.0, 0.0]])))
+
+
+def _cone_deg(cfg: GenerateCfg) -> float:
+    return float(np.degrees(np.arctan(cfg.physics.friction)))
+
+
+@case("stick_inside_cone_edge")
+def _stick(cfg):
+    """Pushed 2 deg inside the friction cone: the pad sticks, the force follows the push."""
+    return _wall_push(max(_cone_deg(cfg) - 2.0, 0.0))
+
+
+@case("slip_past_cone_edge")
+def _slip(cfg):
+    """Pushed 2 deg outside the friction cone: the pad slips until the force lies on its edge."""
+    return _wall_push(_cone_deg(cfg) + 2.0)
+
+
+@case("near_zero_normal_force")
+def _faint(cfg):
+    """A 10 mN push (ten FTS-3 resolution steps) 20 deg off the normal, from 20 um away."""
+    cfg.hand.press_force, cfg.hand.standoff = 0.01, 2e-5
+    return _wall_push(20.0)
+
+
+@case("grazing_70deg_friction")
+def _grazing_friction(cfg):
+    """70 deg off the normal: with friction the pad slips to the cone's edge and holds there
+    (its springs take the rest); frictionless it slides along the face out of travel."""
+    return _wall_push(70.0)
+
+
 @case("sharp_convex_corner")
 def _corner(cfg):
     d = unit(np.array([[1.0, 1.0], [-1.0, -1.0]]))
@@ -145,7 +184,7 @@ def _same_point(cfg):
 
 def run_case(name: str, cfg: GenerateCfg | None = None) -> Outcome:
     """Build and press one named hard case; never raises for a rejected grasp."""
-    cfg = cfg or GenerateCfg()
+    cfg = copy.deepcopy(cfg or GenerateCfg())  # a case may edit its own copy (the drive)
     obj, grasp = CASES[name](cfg)
     scene = ObjectScene(obj, cfg, render=False)
     try:

@@ -65,8 +65,10 @@ def test_decomposition_is_cached_by_mesh_hash(tmp_path, monkeypatch):
     import coacd
 
     mesh = meshes.scale_to_footprint(_l_mesh(), 0.05)
+    (tmp_path / ".killed.npz.999999999.tmp").write_bytes(b"half")  # a killed writer's
     pieces = decomposition.convex_decomposition(mesh, tmp_path)
     assert len(pieces) >= 2 and all(p.is_convex for p in pieces)
+    assert [p.suffix for p in tmp_path.iterdir()] == [".npz"]  # no temporary outlives a write
     assert sum(p.volume for p in pieces) == pytest.approx(mesh.volume, rel=0.05)
     monkeypatch.setattr(coacd, "run_coacd", lambda *a, **k: pytest.fail("decomposed twice"))
     again = decomposition.convex_decomposition(mesh, tmp_path)

@@ -15,23 +15,18 @@ from pathlib import Path
 
 import torch
 
+from vistac.dataset.files import temporary_path
 from vistac.errors import UserError
 
 
 def atomic_save(obj, path: Path) -> None:
     """`torch.save` through a temporary file and a rename (a kill leaves the old file)."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp = temporary_path(path)
     try:
         torch.save(obj, tmp)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
-
-
-def remove_stale_temporaries(folder: Path) -> None:
-    """Delete temporaries a killed process left in a checkpoint folder."""
-    for p in folder.glob(".*.tmp"):
-        p.unlink(missing_ok=True)
 
 
 def is_frozen(name: str, freeze: str) -> bool:

@@ -37,7 +37,7 @@ import torch
 from tqdm import tqdm
 
 from vistac.dataset import open_dataset
-from vistac.dataset.files import atomic_write_json
+from vistac.dataset.files import atomic_write_json, remove_stale_temporaries
 from vistac.errors import UserError
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import fingers_of
@@ -46,7 +46,6 @@ from vistac_learn.models.tipnet import apply_model
 from vistac_learn.train.checkpoints import (
     atomic_save,
     init_from_run,
-    remove_stale_temporaries,
     trainable_parameters,
 )
 from vistac_learn.train.config import (
@@ -121,22 +120,24 @@ def _check_resume(cfg: TrainCfg, out: Path, fingerprint: str) -> None:
     if diff:
         raise UserError(f"{out / 'config.json'}: --resume with different settings "
                         f"({', '.join(diff)})")
+    if saved["dataset"]["fingerprint"] != fingerprint:
+        raise UserError(f"--data {cfg.data}: not the dataset this run started on (its "
+                        f"fingerprint differs from {saved['dataset']['path']}'s)")
     planned = saved["train"].get("epochs")
     if cfg.schedule == "onecycle" and planned != cfg.epochs:
         raise UserError(f"--epochs {cfg.epochs}: the run's one-cycle schedule was planned for "
                         f"{planned} epochs; resume with --epochs {planned}")
-    if saved["dataset"]["fingerprint"] != fingerprint:
-        raise UserError(f"--data {cfg.data}: not the dataset this run started on (its "
-                        f"fingerprint differs from {saved['dataset']['path']}'s)")
 
 
 def _optimizer(cfg: TrainCfg, model: torch.nn.Module, steps: int):
     params = trainable_parameters(model)
     kind = torch.optim.AdamW if cfg.optimizer == "adamw" else torch.optim.Adam
     opt = kind(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
-    if cfg.schedule == "onecycle":
+    if cfg.schedule == "onecycle" and steps >= 3:
+        # torch needs a warm-up of more than one step (it divides by its length): a quarter of
+        # the steps, at least 1.5 (unchanged from 6 steps on); below 3 steps, a constant lr
         sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=cfg.lr, total_steps=steps,
-                                                    pct_start=0.25)
+                                                    pct_start=max(0.25, 1.5 / steps))
     else:
         sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda _: 1.0)
     return opt, sched
@@ -253,7 +254,7 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
                 opt.zero_grad(set_to_none=True)
                 loss = masked_mse(apply_model(model, batch, device), y, batch["found"].to(device))
                 if not torch.isfinite(loss):
-                    raise TrainingDiverged(epoch + 1, f"training loss (batch {b + 1})",
+                    raise TrainingDiverged(epoch + 1, "training loss",
                                            float(loss.detach()), cfg.lr)
                 loss.backward()
                 opt.step()

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import argparse
 
-from vistac.config import HelpFormatter, add_options
+from vistac.config import HelpFormatter, add_options, from_options
+from vistac.engine import ENGINE_OPTIONS, EngineCfg, preflight
 from vistac.errors import UserError
 from vistac_learn.train.command import OPTIONS, check_paths, options_cfg
 from vistac_learn.train.config import PROTOCOLS, TrainCfg
@@ -20,7 +21,9 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         "mean (the test split is never used). Default space: log10 lr, log10 weight decay, "
         "batch size, crop jitter; --space FILE changes it. Every `vistac train` option passes "
         "through to the trials. Writes OUT/trials.csv, best.json, convergence.png and one run "
-        "folder per trial; --resume continues after a kill.",
+        "folder per trial; --resume continues after a kill. --engine ray runs the trials as "
+        "Ray tasks, as many at once as the cluster has CPUs (at most --max-concurrent); on a "
+        "cluster --data and --out must be on a filesystem every node shares.",
         formatter_class=HelpFormatter,
     )
     p.add_argument("--data", required=True, help="dataset directory")
@@ -29,6 +32,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--space", default=None, help="YAML or JSON file changing the search space")
     p.add_argument("--tune-seed", type=int, default=0, help="seed of the optimiser")
     p.add_argument("--resume", action="store_true", help="continue the tuning in --out")
+    add_options(p, EngineCfg, ENGINE_OPTIONS)
     p.add_argument("--protocol", default="default", choices=tuple(PROTOCOLS),
                    help="the trials' set of defaults (see `vistac train`)")
     add_options(p, TrainCfg, OPTIONS)
@@ -38,9 +42,11 @@ def add_command(sub: argparse._SubParsersAction) -> None:
 
 
 def _handler(args: argparse.Namespace) -> int:
-    from vistac_learn.tune.driver import TuneCfg, run_tune
+    from vistac_learn.tune.driver import TuneCfg, check_folder, run_tune
+    from vistac_learn.tune.engines import tune_runner
     from vistac_learn.tune.space import load_space
 
+    engine = from_options(EngineCfg, args, ENGINE_OPTIONS)
     space = load_space(args.space)
     for d in space.dims:
         if getattr(args, d.name) is not None:
@@ -53,7 +59,14 @@ def _handler(args: argparse.Namespace) -> int:
         cfg = TuneCfg(out=args.out, trials=args.trials, seed=args.tune_seed)
     except UserError as exc:
         raise UserError(f"--{str(exc).replace('seed:', 'tune-seed:')}") from None
-    res = run_tune(cfg, base, space, resume=args.resume, progress=not args.quiet)
+    check_folder(cfg, base, space, args.resume)
+    preflight(engine)
+    with tune_runner(engine, base) as runner:
+        if engine.engine == "ray" and not args.quiet:
+            k = runner.concurrency
+            print(f"tune on Ray: {k} trial{'s' if k > 1 else ''} at once", flush=True)
+        res = run_tune(cfg, base, space, resume=args.resume, runner=runner,
+                       progress=not args.quiet)
     if res.best is not None:
         params = ", ".join(f"{d.name}={res.best[d.name]:.4g}" for d in space.dims)
         print(f"best of {len(res.rows)} trials: trial {res.best['trial']}, validation median "

@@ -125,6 +125,21 @@ def _write_rows(path: Path, rows: list[dict[str, Any]], space: SpaceCfg) -> None
     atomic_write_bytes(path, buf.getvalue().encode())
 
 
+def _meta(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg) -> dict[str, Any]:
+    return {"tune": to_dict(cfg), "base": to_dict(base), "space": space.to_json()}
+
+
+def check_folder(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool) -> None:
+    """Whether ``cfg.out`` can take this tuning (`run_tune` checks it too; a caller that starts
+    an engine first checks before).
+
+    Raises:
+        UserError: a folder holding another tuning or other files, a resume without a tuning
+            or with other settings.
+    """
+    _check_folder(cfg, _meta(cfg, base, space), resume)
+
+
 def _check_folder(cfg: TuneCfg, meta: dict, resume: bool) -> None:
     out = Path(cfg.out)
     path = out / "config.json"
@@ -171,7 +186,7 @@ def run_tune(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool = False
 
     runner = runner or LocalRunner()
     out = Path(cfg.out)
-    meta = {"tune": to_dict(cfg), "base": to_dict(base), "space": space.to_json()}
+    meta = _meta(cfg, base, space)
     _check_folder(cfg, meta, resume)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_json(out / "config.json", meta)

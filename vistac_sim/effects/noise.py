@@ -8,6 +8,7 @@ from typing import ClassVar
 import numpy as np
 
 from vistac.config import param
+from vistac.noise import relative_force_noise
 from vistac_sim.effects.registry import Effect, register_effect
 
 
@@ -16,7 +17,8 @@ class ForceNoise(Effect):
     """Per-press Gaussian measurement noise, relative to the force magnitude.
 
     Each component of each finger's force gets independent noise with standard deviation
-    ``relative_std * |F|`` (the noise-free magnitude of that finger's force in that repeat).
+    ``relative_std * |F|`` (the noise-free magnitude of that finger's force in that repeat);
+    the model itself is `vistac.noise.relative_force_noise`.
     """
 
     name: ClassVar[str] = "force_noise"
@@ -24,8 +26,7 @@ class ForceNoise(Effect):
     relative_std: float = 0.05
 
     def __call__(self, forces: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-        scale = self.relative_std * np.linalg.norm(forces, axis=-1, keepdims=True)
-        return forces + scale * rng.standard_normal(forces.shape)
+        return relative_force_noise(forces, self.relative_std, rng)
 
 
 register_effect(

@@ -17,7 +17,7 @@ from vistac.config import (
     option_values,
 )
 from vistac.dataset.files import check_out_dir
-from vistac.engine import ENGINE_OPTIONS, EngineCfg
+from vistac.engine import ENGINE_OPTIONS, WRITES_OPTIONS, EngineCfg
 from vistac.errors import UserError
 from vistac_sim.effects.presets import PRESETS, resolve
 from vistac_sim.generate.config import GenerateCfg
@@ -59,7 +59,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--workers", type=int, default=0,
                    help="processes (0: all cores; at most the cores and the chunks); with "
                    "--engine ray and no cluster: the CPUs of the local Ray instance")
-    add_options(p, EngineCfg, ENGINE_OPTIONS)
+    add_options(p, EngineCfg, ENGINE_OPTIONS + WRITES_OPTIONS)
     add_options(p, GenerateCfg, SCENE_OPTIONS)
     p.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -117,7 +117,7 @@ def _generate(args: argparse.Namespace) -> int:
 
     cfg = generate_cfg_from_args(args)
     workers = check_workers(args.workers)
-    engine = from_options(EngineCfg, args, ENGINE_OPTIONS)
+    engine = from_options(EngineCfg, args, ENGINE_OPTIONS + WRITES_OPTIONS)
     out = check_out_dir(args.out)
     existed = out.exists()
     try:

@@ -8,6 +8,7 @@ can refuse to continue a run made with other settings.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -20,6 +21,8 @@ from vistac_sim.recording.config import RecordingCfg
 from vistac_sim.render.config import RenderCfg
 from vistac_sim.scene.config import HandCfg
 
+MIN_TIP_PIXELS = 3  # a fingertip drawn narrower cannot be told from noise by the tip locator
+
 
 @dataclass
 class GraspCfg(Config):
@@ -27,10 +30,12 @@ class GraspCfg(Config):
 
     approach_spread_deg: float = param(
         20.0, ge=0, lt=90, flag="--approach-spread",
-        help="max degrees of the approach direction off the surface normal")
-    min_opposition_deg: float = param(90.0, ge=0, le=180,
-                                      help="min angle between index and thumb approach "
-                                      "directions")
+        help="max degrees of the hand's closing direction off the index target's surface "
+        "normal (the thumb closes along the same axis, wherever it meets the object)")
+    max_push_angle_deg: float = param(
+        50.0, ge=0, lt=90,
+        help="max degrees between the closing axis and the thumb target's surface normal "
+        "(further off, a pad slides away along the surface)")
     max_redraws: int = param(60, ge=0, le=100_000,
                              help="per configuration, before the run fails loudly")
 
@@ -60,6 +65,14 @@ class GenerateCfg(Config):
                 f"MAX {self.objects.footprint[1]:g} m does not fit the view: with both "
                 f"fingertips it must be <= {room:.4g} m (view_extent {self.render.view_extent:g}"
                 f" m - 4 x tip_radius)"))
+
+        tip_px = 2 * self.hand.tip_radius / self.render.view_extent * self.render.image_size
+        if tip_px < MIN_TIP_PIXELS:
+            need = math.ceil(MIN_TIP_PIXELS * self.render.view_extent / (2 * self.hand.tip_radius))
+            raise ConfigError("render.image_size", (
+                f"{self.render.image_size} px draws a fingertip {tip_px:.1f} px across; the "
+                f"overlay needs >= {MIN_TIP_PIXELS} px to be found: use >= {need} px (or a "
+                f"smaller view_extent)"))
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-able dict of the whole tree (tuples become lists)."""

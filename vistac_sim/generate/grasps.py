@@ -1,9 +1,12 @@
 """Grasp sampling: object pose, contact targets on the top-view outline, approach directions.
 
-Targets lie on the object's outline at fingertip height. Each finger approaches within
-`approach_spread_deg` of the inward surface normal; the thumb's approach opposes the index's by at
-least `min_opposition_deg`; the whole finger (tip and shaft) must fit beside the object in its
-start pose, and the two fingers must not overlap. What cannot be met is a `RejectedSample`.
+The hand closes along its own direction, not along the surface normals: the index target is
+drawn on the object's outline at fingertip height and the closing direction within
+`approach_spread_deg` of its inward normal; the index pushes along it, and the thumb pushes back
+along the same axis, on the outline where that axis leaves the object. The thumb's push-to-normal
+angle is thus whatever the shape gives there (up to `max_push_angle_deg`). The whole finger (tip
+and shaft) must fit beside the object in its start pose, and the two fingers must not overlap.
+What cannot be met is a `RejectedSample`.
 
 Grasps are drawn against the collision geometry that MuJoCo simulates: the outline is the section
 of the object's convex collision pieces at the press height, and a finger fits beside an object
@@ -114,38 +117,45 @@ class OutlineSampler:
         if self._overlap(*axes):
             raise RejectedSample("fingers_overlap", "thumb and index would overlap")
 
-    def sample(self, rng: np.random.Generator, n_thumb_candidates: int = 24) -> Grasp:
+    def far_crossing(self, point: np.ndarray,
+                     direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where the line from `point` along `direction` last crosses the outline, and the
+        outline's outward normal there (the thumb's target on the closing axis).
+
+        Raises:
+            RejectedSample: "no_opposing_thumb" when the line leaves no outline beyond `point`.
+        """
+        e = self.p1 - self.p0
+        w = self.p0 - point
+        denom = direction[0] * e[:, 1] - direction[1] * e[:, 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (w[:, 0] * e[:, 1] - w[:, 1] * e[:, 0]) / denom
+            u = (w[:, 0] * direction[1] - w[:, 1] * direction[0]) / denom
+        hit = (np.abs(denom) > 1e-12) & (u >= 0) & (u <= 1) & (t > 1e-9)
+        if not hit.any():
+            raise RejectedSample("no_opposing_thumb", "the closing axis leaves no far side")
+        k = int(np.argmax(np.where(hit, t, -np.inf)))
+        return point + t[k] * direction, self.normals[k]
+
+    def sample(self, rng: np.random.Generator) -> Grasp:
         """Draw one grasp in world coordinates.
 
         Raises:
             RejectedSample: "unreachable" (a finger would start inside the object),
-                "no_opposing_thumb" (no thumb target opposes the index), "fingers_overlap".
+                "no_opposing_thumb" (the thumb's surface is too far off the closing axis),
+                "fingers_overlap".
         """
-        h = self.cfg.hand
+        g = self.cfg.grasp
         yaw = float(rng.uniform(-np.pi, np.pi))
         xy = rng.uniform(-0.01, 0.01, 2)
         p_i, n_i = self._points(rng, 1)
-        a_i = self._approach(rng, n_i)
-        s_i = p_i + n_i * h.tip_radius - a_i * h.standoff
-        axis_i = self.finger_axis(s_i[0], a_i[0])
-        if self._inside(axis_i):
-            raise RejectedSample("unreachable", "index finger would start inside the object")
-        p_t, n_t = self._points(rng, n_thumb_candidates)
-        a_t = self._approach(rng, n_t)
-        cos_min = np.cos(np.radians(self.cfg.grasp.min_opposition_deg))
-        ok = (a_t @ a_i[0]) <= cos_min
-        if not ok.any():
-            raise RejectedSample("no_opposing_thumb", "no thumb target opposes the index finger")
-        reason = RejectedSample("unreachable", "thumb would start inside the object")
-        for k in np.flatnonzero(ok):
-            s_t = p_t[k] + n_t[k] * h.tip_radius - a_t[k] * h.standoff
-            axis_t = self.finger_axis(s_t, a_t[k])
-            if self._inside(axis_t):
-                continue
-            if self._overlap(axis_t, axis_i):
-                reason = RejectedSample("fingers_overlap", "thumb and index would overlap")
-                continue
-            local = Grasp(xy, yaw, np.concatenate([p_i, p_t[k:k + 1]]),
-                          np.concatenate([n_i, n_t[k:k + 1]]), np.concatenate([a_i, a_t[k:k + 1]]))
-            return to_world(local)
-        raise reason
+        close = self._approach(rng, n_i)[0]  # the hand's closing direction = the index's push
+        p_t, n_t = self.far_crossing(p_i[0], close)
+        off = np.degrees(np.arccos(np.clip(close @ n_t, -1.0, 1.0)))
+        if off > g.max_push_angle_deg:
+            raise RejectedSample("no_opposing_thumb", f"the thumb's surface is {off:.0f} deg off "
+                                 f"the closing axis (limit {g.max_push_angle_deg:g})")
+        local = Grasp(xy, yaw, np.stack([p_i[0], p_t]), np.stack([n_i[0], n_t]),
+                      np.stack([close, -close]))
+        self.check(local)
+        return to_world(local)

@@ -1,15 +1,24 @@
-"""`vistac generate --engine ray`: chunks run as Ray tasks, the driver commits what comes back.
+"""`vistac generate --engine ray`: chunks run as Ray tasks.
 
 Each chunk is one task (1 CPU, retried by Ray up to 3 times if its worker or node dies). A task
-makes its chunk in memory (`make_chunk`: pure, deterministic given the seed and the chunk) and
-returns the rows, presses and PNG bytes; the driver writes them (`commit_chunk`) into the output
-folder exactly as a local worker does. So the nodes need no shared filesystem, the dataset lands
-only on the driver's disk, and it is byte-identical to a local run with the same seed: the same
-chunks, made by the same code, written by the same function. Resume works as locally: a chunk
-counts as done once its shard is committed, and a killed run redoes only the others.
+makes its chunk in memory (`make_chunk`: pure, deterministic given the seed and the chunk).
+Who writes it (``--ray-writes``):
+
+- ``driver`` (default): the task returns the rows, presses and PNG bytes and the driver writes
+  them (`commit_chunk`) into the output folder exactly as a local worker does. The nodes need no
+  shared filesystem and the dataset lands only on the driver's disk; but one process receives
+  and writes everything, which bounds a large cluster (``benchmarks/ray_overhead.py``).
+- ``workers``: the task commits its chunk itself (`commit_chunk`, as a local worker does) into
+  ``--out``, which must be the same folder on every node (a shared filesystem); the driver only
+  counts. Before a worker writes, it checks that it sees the run's folder (a marker file the
+  driver wrote) and the driver's package versions.
+
+Either way the dataset is byte-identical to a local run with the same seed: the same chunks,
+made by the same code, written by the same function. Resume works as locally: a chunk counts as
+done once its shard is committed, and a killed run redoes only the others.
 
 Every node must run the same environment as the driver (same vistac, MuJoCo, NumPy, trimesh);
-the driver checks the versions each task reports and stops on a mismatch. User mesh files
+the versions each task reports are checked and a mismatch stops the run. User mesh files
 (``--objects``) must exist at the same path on every node.
 """
 
@@ -17,12 +26,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import secrets
 import socket
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 from vistac.dataset import files
+from vistac.dataset.schema import PARTIAL
 from vistac.engine import EngineCfg, RayRunner, ray_session
 from vistac.errors import UserError
 from vistac_sim.effects import build_pipeline
@@ -40,12 +51,14 @@ TASK_RETRIES = 3
 
 @dataclass
 class MadeChunk:
-    """What a task sends back: the chunk's configurations and where they were made."""
+    """What a task sends back: the chunk's configurations (none once the worker committed
+    them itself) and where they were made."""
 
     index: int
     configurations: list[Configuration]
     node: str
     versions: dict[str, str]
+    committed: int | None = None  # configurations the worker wrote itself
 
 
 @dataclass(frozen=True)
@@ -54,6 +67,9 @@ class ChunkJob:
 
     cfg: GenerateCfg
     specs: tuple[ObjectSpec, ...]
+    out: str | None = None  # set: the worker commits into this shared folder itself
+    marker: str = ""  # a file the driver wrote under out/.partial: proof of the same folder
+    versions: tuple[tuple[str, str], ...] = ()  # the driver's (checked before a worker writes)
 
     @property
     def key(self) -> str:
@@ -61,9 +77,33 @@ class ChunkJob:
         return hashlib.sha1(text.encode()).hexdigest()
 
     def __call__(self, chunk: Chunk) -> MadeChunk:
+        node, versions = socket.gethostname(), files.versions(*VERSIONED)
+        if self.out is not None:
+            self.check_writable(node, versions)
         scenes, pipeline = _worker_state(self)
         made = make_chunk(chunk, self.cfg, scenes, pipeline)
-        return MadeChunk(chunk.index, made, socket.gethostname(), files.versions(*VERSIONED))
+        if self.out is None:
+            return MadeChunk(chunk.index, made, node, versions)
+        return MadeChunk(chunk.index, [], node, versions, commit_chunk(Path(self.out),
+                                                                       chunk.index, made))
+
+    def check_writable(self, node: str, versions: dict[str, str]) -> None:
+        """Before a worker writes: same versions as the driver, and the driver's --out folder.
+
+        Raises:
+            UserError: naming the node and what differs.
+        """
+        if versions != dict(self.versions):
+            raise _version_error(node, versions, dict(self.versions))
+        if not (Path(self.out) / PARTIAL / self.marker).is_file():
+            raise UserError(f"--ray-writes workers: node {node} does not see the driver's "
+                            f"--out {self.out}; it must be a folder every node shares (NFS, "
+                            "say), or use --ray-writes driver")
+
+
+def _version_error(node: str, theirs: dict[str, str], mine: dict[str, str]) -> UserError:
+    return UserError(f"--engine ray: node {node} runs {theirs}, this driver {mine}; install the "
+                     "same environment on every node")
 
 
 _STATE: dict = {}  # per worker process: the scenes (and renderers) of the current run
@@ -91,11 +131,19 @@ def run_chunks_on_ray(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo
         UserError: Ray missing, the cluster unreachable, or a node with other versions.
     """
     expected = files.versions(*VERSIONED)
+    job = ChunkJob(cfg, tuple(specs))
+    if engine.ray_writes == "workers":
+        marker = f"shared-{secrets.token_hex(8)}"
+        (out / PARTIAL / marker).touch()
+        job = ChunkJob(cfg, tuple(specs), str(out.absolute()), marker,
+                       tuple(sorted(expected.items())))
     with ray_session(engine, num_cpus=num_cpus) as ray:
-        runner = RayRunner(ray, ChunkJob(cfg, tuple(specs)), max_concurrent=engine.max_concurrent,
-                           num_cpus=TASK_CPUS, max_retries=TASK_RETRIES)
+        runner = RayRunner(ray, job, max_concurrent=engine.max_concurrent, num_cpus=TASK_CPUS,
+                           max_retries=TASK_RETRIES)
         for _, made in runner.run(todo):
             if made.versions != expected:
-                raise UserError(f"--engine ray: node {made.node} runs {made.versions}, this "
-                                f"driver {expected}; install the same environment on every node")
-            yield commit_chunk(out, made.index, made.configurations)
+                raise _version_error(made.node, made.versions, expected)
+            if made.committed is not None:
+                yield made.committed
+            else:
+                yield commit_chunk(out, made.index, made.configurations)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 from vistac.config import Config, ConfigError, param
 from vistac_sim.objects.outlines import PROCEDURAL_FAMILIES
@@ -41,3 +42,6 @@ class ObjectsCfg(Config):
                 raise ConfigError(name, f"MIN must be <= MAX, got {lo:g} > {hi:g}")
         if not self.families:
             raise ConfigError("families", "needs at least one family")
+        # stored absolute: a manifest names the same files wherever the run is resumed from
+        absolute = tuple(str(Path(p).expanduser().resolve()) for p in self.paths)
+        object.__setattr__(self, "paths", absolute)

@@ -4,6 +4,7 @@ convex pieces (the geometry MuJoCo collides)."""
 from __future__ import annotations
 
 import hashlib
+import io
 import os
 from pathlib import Path
 
@@ -11,6 +12,8 @@ import numpy as np
 import shapely
 import trimesh
 from shapely.ops import unary_union
+
+from vistac.dataset.files import atomic_write_bytes, remove_stale_temporaries
 
 # CoACD's search budget: a quarter of its default cost (20 s instead of 80 s of CPU for a 4 k-face
 # scan) for decompositions within the same concavity threshold.
@@ -52,11 +55,12 @@ def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
     unit_pieces = [p for p in unit_pieces if p.volume > 0]
     pieces = [trimesh.Trimesh(p.vertices * size + lo, p.faces) for p in unit_pieces]
     cache.parent.mkdir(parents=True, exist_ok=True)
-    tmp = cache.with_suffix(f".{os.getpid()}.tmp.npz")
+    remove_stale_temporaries(cache.parent)  # a killed writer's leftovers
     arrays = {f"v{i}": p.vertices for i, p in enumerate(unit_pieces)}
     arrays.update({f"f{i}": p.faces for i, p in enumerate(unit_pieces)})
-    np.savez(tmp, n=len(unit_pieces), **arrays)
-    os.replace(tmp, cache)
+    buf = io.BytesIO()
+    np.savez(buf, n=len(unit_pieces), **arrays)
+    atomic_write_bytes(cache, buf.getvalue())
     return pieces
 
 

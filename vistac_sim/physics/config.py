@@ -9,14 +9,25 @@ from vistac.config import Config, ConfigError, param
 
 @dataclass
 class PhysicsCfg(Config):
-    """MuJoCo settings of the press."""
+    """MuJoCo settings of the press: contacts, friction, and the two phases of a press
+    (`vistac_sim.physics.press`)."""
 
-    friction: float = param(0.6, ge=0,
-                            help="sliding friction coefficient (0: frictionless)")
+    friction: float = param(0.8, ge=0,
+                            help="sliding friction coefficient, pad on object (0: "
+                            "frictionless). Default 0.8: an elastomer fingertip pad on dry, "
+                            "hard plastic, wood or metal (handbook values ~0.5-1.0); see the "
+                            'README section "Friction"')
     timestep: float = param(0.002, gt=0, le=0.1, help="s per MuJoCo step")
-    settle_steps: int = param(150, ge=1, le=1_000_000,
-                              help="steps of a press; 0.3 s: forces agree with 1000 steps "
-                              "to ~1e-9 N (median)")
+    approach_steps: int = param(30, ge=1, le=1_000_000,
+                                help="steps of the approach, frictionless with the tip's "
+                                "lateral springs held: the pad lands and its normal force "
+                                "settles")
+    settle_steps: int = param(60, ge=1, le=1_000_000,
+                              help="steps after the springs are released: a pad pushed outside "
+                              "the friction cone slips until its force lies on the cone's edge")
+    noslip_iterations: int = param(10, ge=0, le=1000,
+                                   help="MuJoCo noslip iterations: no creep of a sticking pad "
+                                   "(soft contacts otherwise let it slip slowly)")
     solref: tuple[float, float] = param((0.004, 1.0), help="MuJoCo solref of every contact")
     solimp: tuple[float, float, float] = param((0.99, 0.999, 0.0005), gt=0,
                                                help="MuJoCo solimp of every contact")

@@ -1,5 +1,17 @@
 """The press: drive both fingertips into the object, settle, read and check the contact forces.
 
+Each tip is pushed along its own approach direction (the hand's closing direction) by a
+constant-force drive, and hangs on two sprung slides across it (`sim_assets/hand/`). A press has
+two phases. The approach runs frictionless (MuJoCo's contact override) with the lateral slides
+held, until the pad rests on the surface. Then friction is switched on and the springs are
+released, unloaded where they are: where the push lies inside the friction cone the pad sticks
+and the force follows the push; outside it the pad slips, loading the springs, until the force
+lies on the cone's edge: angle(force, normal) = min(angle(push, normal), atan(mu)). (Without the
+first phase, a pad that lands with some speed slips a fraction of a millimetre on MuJoCo's soft
+contact before friction grips, or friction locks it against the holds; either leaves the springs
+loaded and tilts a sticking force by degrees.) The noslip solver (`PhysicsCfg`) stops the slow
+creep of a sticking soft contact.
+
 Forces are read two independent ways and must agree: (1) summing `mj_contactForce` over the
 pad's contacts, rotated from each contact frame to the world; (2) MuJoCo's `contact` sensor with
 ``reduce="netforce"`` (world frame). Both are rotated into the sensor site frame.
@@ -21,6 +33,8 @@ from vistac_sim.mj import mujoco
 from vistac_sim.physics.checks import RejectedSample
 from vistac_sim.scene.grasp import Grasp
 from vistac_sim.scene.ids import SceneIds
+
+_OVERRIDE = int(mujoco.mjtEnableBit.mjENBL_OVERRIDE)
 
 if TYPE_CHECKING:
     from vistac_sim.generate.config import GenerateCfg
@@ -48,11 +62,19 @@ class Press:
         self.cfg = cfg
         self._f6 = np.zeros(6)
         self._limit = cfg.hand.standoff + cfg.hand.travel
+        phys = cfg.physics  # contact override of the approach: the scene's contacts, no friction
+        model.opt.o_friction[:] = 0.0
+        model.opt.o_solref[:] = phys.solref
+        model.opt.o_solimp[:] = [*phys.solimp, 0.5, 2.0]
+        model.opt.o_margin = 0.0
+        self._lateral = np.array(ids.lateral_qpos)
 
     def pose(self, grasp: Grasp) -> None:
         """Reset the data and place the object and both finger bases for `grasp`."""
         m, d, ids, h = self.model, self.data, self.ids, self.cfg.hand
         mujoco.mj_resetData(m, d)
+        m.opt.enableflags |= _OVERRIDE  # frictionless approach (see the module's docstring)
+        m.qpos_spring[self._lateral] = 0.0  # the last press moved them: same start every press
         m.body_pos[ids.object_body] = [grasp.object_xy[0], grasp.object_xy[1], 0.0]
         m.body_quat[ids.object_body] = yaw_quat(grasp.object_yaw)
         start = grasp.start(h.tip_radius, h.standoff)
@@ -61,6 +83,13 @@ class Press:
             d.mocap_quat[ids.mocap[f]] = yaw_quat(np.arctan2(grasp.approach[k, 1],
                                                              grasp.approach[k, 0]))
             d.ctrl[ids.actuator[f]] = h.press_force
+
+    def release(self) -> None:
+        """End of the approach: friction on, lateral springs released, unloaded where they are."""
+        m, d = self.model, self.data
+        m.opt.enableflags &= ~_OVERRIDE
+        d.eq_active[self.ids.holds] = False
+        m.qpos_spring[self._lateral] = d.qpos[self._lateral]
 
     def run(self, grasp: Grasp) -> PressResult:
         """Press both fingers for `grasp` and return the checked, settled forces.
@@ -74,6 +103,8 @@ class Press:
         mujoco.mj_forward(m, d)
         if d.ncon and (d.contact.dist[: d.ncon] < 0).any():
             raise RejectedSample("start_penetrates", "a finger starts inside the object")
+        mujoco.mj_step(m, d, nstep=phys.approach_steps)
+        self.release()
         mujoco.mj_step(m, d, nstep=phys.settle_steps)
         if d.warning.number.any():
             raise RejectedSample("mujoco_warning", _warnings(d))
@@ -97,7 +128,7 @@ class Press:
             pad = [c for c in range(ncon) if g1[c] == pad_id or g2[c] == pad_id]
             if not pad or d.qpos[ids.qpos[f]] >= self._limit - 1e-6:
                 raise RejectedSample("no_contact", f"{f} pad reached no surface")
-            speed = abs(d.qvel[ids.dof[f]])
+            speed = float(np.linalg.norm(d.qvel[ids.tip_dofs[f]]))
             if speed > phys.max_speed:
                 raise RejectedSample("not_settled", f"{f} tip still moves at {speed:.2e} m/s")
             pen[k] = max(0.0, -min(d.contact.dist[c] for c in pad))

@@ -1,7 +1,8 @@
 """The scene of one object: the hand's MJCF asset, edited from the config, plus the object.
 
 `sim_assets/hand/scene.xml` (table, top camera, the object's body, contact force sensors) includes
-`hand.xml` (the two fingertips on mocap bases, slide joints, drives, sensor sites). `scene_spec`
+`hand.xml` (the two fingertips on mocap bases, a driven slide along the push and two sprung
+slides across it, drives, sensor sites). `scene_spec`
 loads them as an `MjSpec` and sets every number the config controls; `compile_scene` adds the
 object's meshes as arrays and compiles. The asset's numbers are the config defaults, so the
 default config leaves them as they are.
@@ -16,7 +17,7 @@ import numpy as np
 from vistac.dataset import FINGERS
 from vistac_sim.assets import SCENE_XML
 from vistac_sim.mj import mujoco
-from vistac_sim.scene.ids import OBJECT_GROUP_COLLISION, SceneIds
+from vistac_sim.scene.ids import LATERAL_JOINTS, OBJECT_GROUP_COLLISION, SceneIds
 
 if TYPE_CHECKING:
     from vistac_sim.generate.config import GenerateCfg
@@ -29,6 +30,7 @@ def scene_spec(cfg: GenerateCfg) -> mujoco.MjSpec:
     spec = mujoco.MjSpec.from_file(str(SCENE_XML))
     hand, phys, rend = cfg.hand, cfg.physics, cfg.render
     spec.option.timestep = phys.timestep
+    spec.option.noslip_iterations = phys.noslip_iterations
     spec.visual.global_.offwidth = spec.visual.global_.offheight = rend.image_size
     spec.camera("top").fovy = rend.view_extent
     table = spec.geom("table")
@@ -46,6 +48,10 @@ def scene_spec(cfg: GenerateCfg) -> mujoco.MjSpec:
         slide = spec.joint(f"{f}_slide")
         slide.range = [0.0, hand.standoff + hand.travel]
         slide.damping = [hand.damping, *slide.damping[1:]]
+        for name in LATERAL_JOINTS:
+            joint = spec.joint(f"{f}_{name}")
+            joint.stiffness = [hand.lateral_stiffness, *joint.stiffness[1:]]
+            joint.damping = [hand.lateral_damping, *joint.damping[1:]]
         pad, shaft = spec.geom(f"{f}_pad"), spec.geom(f"{f}_shaft")
         pad.fromto = [-2 * hand.tip_half_length, 0.0, 0.0, 0.0, 0.0, 0.0]
         pad.size = [hand.tip_radius, *pad.size[1:]]

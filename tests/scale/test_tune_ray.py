@@ -1,0 +1,125 @@
+"""`vistac tune --engine ray`: the files of the local engine, resume after a cap and a kill,
+options checked before Ray starts."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from learn_fixtures import make_dataset
+
+from vistac.cli import main
+
+TRIALS = 3
+# init_points >= TRIALS: every suggestion is the optimiser's seeded random point for (seed,
+# trial), whatever finished before, so both engines try the same options in every trial.
+SPACE = {"init_points": TRIALS, "params": {"weight_decay": None, "jitter": None,
+                                           "batch_size": {"low": 2, "high": 6}}}
+RUN = ["--protocol", "study", "--model", "smallconv", "--epochs", "1", "--n-rotations", "2",
+       "--device", "cpu", "--tune-seed", "3"]
+OUTPUTS = {"config.json", "trials.csv", "pending.json", "best.json", "convergence.png"}
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    """The dataset, the tune options and a finished local tuning to compare with."""
+    root = tmp_path_factory.mktemp("tune")
+    data = make_dataset(root / "ds", n=8, repeats=3, size=64)
+    (root / "space.json").write_text(json.dumps(SPACE))
+    args = ["--data", str(data), "--space", str(root / "space.json"), *RUN,
+            "--cache-dir", str(root / "cache")]
+    assert main(["tune", "--out", str(root / "local"), "--trials", str(TRIALS), "--quiet",
+                 *args]) == 0
+    return args, root / "local"
+
+
+def _tune(out, args, *extra, trials=TRIALS):
+    return main(["tune", "--out", str(out), "--trials", str(trials), "--quiet", *args, *extra])
+
+
+def _rows(out):
+    with (out / "trials.csv").open() as fh:
+        return list(csv.DictReader(fh))
+
+
+def _assert_same_tuning(ref, out):
+    """The files of `ref`, the same trials with the same options and outcomes."""
+    assert {p.name for p in out.iterdir()} == OUTPUTS | {"trials"}
+    trials = sorted(p.name for p in (ref / "trials").iterdir())
+    assert sorted(p.name for p in (out / "trials").iterdir()) == trials
+    for t in trials:
+        assert (out / "trials" / t / "checkpoints" / "best.pt").is_file()
+    a, b = _rows(ref), _rows(out)
+    assert [r["trial"] for r in b] == [str(t) for t in range(TRIALS)]
+    assert [list(r) for r in b] == [list(r) for r in a]
+    for x, y in zip(a, b, strict=True):
+        assert all(y[k] != "" for k in y), y  # complete rows
+        for k in ("trial", "lr", "batch_size", "status", "best_epoch", "run"):
+            assert y[k] == x[k], k
+        # the same training; Ray's one-thread workers may round differently in the last bits
+        assert float(y["objective"]) == pytest.approx(float(x["objective"]), rel=1e-4, abs=1e-6)
+    assert json.loads((out / "pending.json").read_text()) == {}
+    best_a, best_b = (json.loads((d / "best.json").read_text()) for d in (ref, out))
+    assert best_b["trial"] == best_a["trial"] and best_b["params"] == best_a["params"]
+    assert best_b["n_trials"] == TRIALS and best_b["run"] == str(out / "trials" / best_b["run"]
+                                                                     .split("/")[-1])
+
+
+def test_ray_engine_writes_what_the_local_engine_writes(ray_local, setup, tmp_path, capsys):
+    args, ref = setup
+    out = tmp_path / "ray"
+    assert main(["tune", "--out", str(out), "--trials", str(TRIALS), *args, "--engine", "ray"]) \
+        == 0
+    assert "tune on Ray: 2 trials at once" in capsys.readouterr().out  # the fixture's 2 CPUs
+    _assert_same_tuning(ref, out)
+
+
+def test_ray_engine_resumes_after_a_trial_cap(ray_local, setup, tmp_path, capsys):
+    args, ref = setup
+    out = tmp_path / "capped"
+    assert _tune(out, args, "--engine", "ray", "--max-concurrent", "1", trials=1) == 0
+    assert [r["trial"] for r in _rows(out)] == ["0"]
+    assert _tune(out, args, "--engine", "ray", "--resume") == 0
+    _assert_same_tuning(ref, out)
+
+
+def test_killed_ray_driver_then_resume(ray_local, setup, tmp_path):
+    """A second driver joins the running instance by address and is killed with SIGKILL after
+    its first finished trial; the resumed tuning redoes the trials in flight and ends with the
+    files of the local engine."""
+    args, ref = setup
+    address = ray_local.get_runtime_context().gcs_address
+    out = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "vistac.cli", "tune", "--out", str(out), "--trials",
+           str(TRIALS), "--quiet", *args, "--engine", "ray", "--ray-address", address]
+    proc = subprocess.Popen(cmd)
+    deadline = time.time() + 180
+    while time.time() < deadline and not ((out / "trials.csv").exists() and _rows(out)):
+        assert proc.poll() is None, "the driver ended before it was killed"
+        time.sleep(0.05)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    finished = len(_rows(out))
+    assert 1 <= finished < TRIALS and json.loads((out / "pending.json").read_text())
+    assert _tune(out, args, "--engine", "ray", "--resume") == 0
+    _assert_same_tuning(ref, out)
+
+
+def test_engine_options_are_checked_before_ray_starts(setup, tmp_path, capsys):
+    args, _ = setup
+    out = tmp_path / "t"
+    assert _tune(out, args, "--ray-address", "127.0.0.1:6379") == 2
+    assert "--ray-address: needs --engine ray" in capsys.readouterr().err
+    assert _tune(out, args, "--max-concurrent", "2") == 2
+    assert "--max-concurrent: needs --engine ray" in capsys.readouterr().err
+    assert _tune(out, args, "--engine", "ray", "--max-concurrent", "0") == 2
+    assert "--max-concurrent: must be >= 1" in capsys.readouterr().err
+    assert _tune(out, args, "--engine", "ray", "--ray-address", "127.0.0.1:1") == 2
+    assert "no Ray cluster answers there" in capsys.readouterr().err
+    assert not out.exists()
