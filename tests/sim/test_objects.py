@@ -212,7 +212,8 @@ def test_object_without_valid_grasp_is_skipped_and_the_count_delivered(tmp_path,
     rows = {r["path"].rsplit("/", 1)[-1]: r for r in manifest["per_object"]}
     assert rows["mushroom.stl"]["status"] == "skipped"
     assert "no valid grasp" in rows["mushroom.stl"]["reason"]
-    assert rows["mushroom.stl"]["rejections"] == {"unreachable": 60}
+    assert sum(rows["mushroom.stl"]["rejections"].values()) == 60  # max_redraws, all rejected
+    assert rows["mushroom.stl"]["rejections"]["unreachable"] > 30
     assert rows["box.stl"]["status"] == "used"
     assert rows["box.stl"]["configurations"] == 5 and rows["box.stl"]["presses"] == 10
     assert "mushroom" in io.out and "no valid grasp" in io.out  # the end-of-run summary
