@@ -7,7 +7,8 @@
 2. Drawn grasps: `vistac generate` on the default procedural objects at each `--friction`; per
    contact, the push-to-normal angle (the hand closes along its own axis), the force-to-normal
    angle (median, p95, max), the share of contacts on the cone's edge (within 0.5 deg of
-   atan mu: slipping) and the bound atan(mu) + 2 deg.
+   atan mu: slipping), the bound atan(mu) + 2 deg, and the median |r_y| of the labels (how far
+   the force leans across the pad).
 
 Writes `friction_analytic.csv`, `friction_stats.csv` and `friction_stats.md` into `--results`.
 
@@ -51,15 +52,21 @@ def analytic_table() -> pd.DataFrame:
 def contact_angles(configs: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     """Per contact (both fingers): push-to-normal and force-to-normal angles, degrees.
 
-    In the sensor frame the push is +z (into the object) and the columns hold the outward
-    normal, so the push-to-normal angle is the angle between z and minus the normal.
+    The push (world xy, the hand's closing axis) is turned into the finger's sensor frame (z =
+    the finger axis, y = up x z, mirrored for the thumb; contracts.md); the normal columns hold
+    the outward normal there, so the push-to-normal angle is the angle between the push and
+    minus the normal.
     """
     push, force = [], []
-    for f in FINGERS:
+    for f, mirror in zip(FINGERS, (1.0, -1.0), strict=True):
         n = configs[[f"normal_{f}_{c}" for c in "xyz"]].to_numpy()
         n = n / np.linalg.norm(n, axis=1, keepdims=True)
         F = configs[[f"force_clean_{f}_{c}" for c in "xyz"]].to_numpy()
-        push.append(np.degrees(np.arccos(np.clip(-n[:, 2], -1, 1))))
+        a = configs[[f"approach_{f}_x", f"approach_{f}_y"]].to_numpy()
+        p = configs[[f"push_{f}_x", f"push_{f}_y"]].to_numpy()
+        p_s = np.c_[np.zeros(len(p)), mirror * (p[:, 1] * a[:, 0] - p[:, 0] * a[:, 1]),
+                    (p * a).sum(1)]
+        push.append(np.degrees(np.arccos(np.clip(-(p_s * n).sum(1), -1, 1))))
         cos = (F * n).sum(1) / np.linalg.norm(F, axis=1)
         force.append(np.degrees(np.arccos(np.clip(cos, -1, 1))))  # F and n both point at the pad
     return np.concatenate(push), np.concatenate(force)
@@ -85,6 +92,10 @@ def drawn_stats(frictions, n: int, workers: int, seed: int) -> pd.DataFrame:
                 "atan_mu_deg": cone,
                 "share_on_cone_edge": float(np.mean(np.abs(ang - cone) <= EDGE_DEG)) if mu else 0.0,
                 "share_beyond_atan_mu_plus_2": float(np.mean(ang > cone + 2.0)),
+                "median_abs_r_y": float(np.median(np.abs(np.concatenate(
+                    [configs[f"force_clean_{f}_y"] / np.hypot(configs[f"force_clean_{f}_y"],
+                                                              configs[f"force_clean_{f}_z"])
+                     for f in FINGERS])))),
                 "redraws": manifest.get("redraws", {}).get("total", 0),
                 "wall_s": time.perf_counter() - t0,
             })
@@ -108,15 +119,15 @@ def markdown(analytic: pd.DataFrame, stats: pd.DataFrame, args) -> str:
               f"({len(analytic)} presses).", "",
               "## Drawn grasps: angles per contact (degrees)", "",
               "| friction | contacts | push-to-normal median / p95 / max | force-to-normal "
-              "median / p95 / max | atan mu | on cone edge | beyond atan mu + 2 |",
-              "|---|---|---|---|---|---|---|"]
+              "median / p95 / max | atan mu | on cone edge | beyond atan mu + 2 | median abs r_y |",
+              "|---|---|---|---|---|---|---|---|"]
     for _, r in stats.iterrows():
         lines.append(
             f"| {r.friction:g} | {int(r.contacts)} | {r.push_median_deg:.2f} / "
             f"{r.push_p95_deg:.2f} / {r.push_max_deg:.2f} | {r.force_median_deg:.2f} / "
             f"{r.force_p95_deg:.2f} / "
             f"{r.force_max_deg:.2f} | {r.atan_mu_deg:.2f} | {100 * r.share_on_cone_edge:.1f} % "
-            f"| {100 * r.share_beyond_atan_mu_plus_2:.1f} % |")
+            f"| {100 * r.share_beyond_atan_mu_plus_2:.1f} % | {r.median_abs_r_y:.3f} |")
     return "\n".join(lines) + "\n"
 
 

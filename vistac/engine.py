@@ -30,6 +30,9 @@ from vistac.errors import UserError
 ENGINE_OPTIONS = ("engine", "ray_address", "max_concurrent")
 WRITES_OPTIONS = ("ray_writes",)  # `generate` only: who writes what the tasks make
 LOCAL_OBJECT_STORE_BYTES = 128 * 2**20  # a local instance's object store: results are small
+# A task's runtime environment in which it sees only the GPUs Ray assigned to it: by default
+# (Ray 2.60) a task that asks for no GPU is not hidden from the node's GPUs.
+ONLY_ASSIGNED_GPUS = {"env_vars": {"RAY_ACCEL_ENV_VAR_OVERRIDE_ON_ZERO": "1"}}
 
 
 @dataclass
@@ -175,19 +178,34 @@ class RayRunner:
             they are yielded in place of the result instead of ending the batch. Any other
             exception ends the batch (a `UserError` raised by a job is raised as itself).
         max_concurrent: At most this many tasks in flight (None: as many as fit the cluster's
-            CPUs at `num_cpus` per task).
+            CPUs at `num_cpus` per task, and its GPUs at `num_gpus`).
         num_cpus: CPUs Ray reserves for each task.
+        num_gpus: GPUs Ray reserves for each task (and makes visible to it; a task that asks
+            for none sees none).
         max_retries: Times Ray re-runs a task whose worker process or node died.
+        runtime_env: Ray's runtime environment of the tasks (e.g. `ONLY_ASSIGNED_GPUS`).
+
+    Raises:
+        UserError: the cluster has fewer CPUs or GPUs than one task asks for.
     """
 
     def __init__(self, ray: Any, job: Callable[[Any], Any],
                  returned_errors: tuple[type[BaseException], ...] = (),
-                 max_concurrent: int | None = None, num_cpus: float = 1, max_retries: int = 3):
+                 max_concurrent: int | None = None, num_cpus: float = 1, num_gpus: float = 0,
+                 max_retries: int = 3, runtime_env: dict | None = None):
         self.ray, self.returned_errors = ray, tuple(returned_errors)
-        self._task = ray.remote(_call).options(num_cpus=num_cpus, max_retries=max_retries)
+        self._task = ray.remote(_call).options(num_cpus=num_cpus, num_gpus=num_gpus,
+                                               max_retries=max_retries, runtime_env=runtime_env)
+        have = ray.cluster_resources()
+        fits = [int(have.get(kind, 0) // need)
+                for kind, need in (("CPU", num_cpus), ("GPU", num_gpus)) if need > 0]
+        if min(fits, default=1) < 1:
+            raise UserError(f"--engine ray: a task asks for {num_cpus:g} CPU and {num_gpus:g} "
+                            f"GPU, the cluster has {have.get('CPU', 0):g} CPU and "
+                            f"{have.get('GPU', 0):g} GPU")
+        fit = min(fits, default=1)
+        self.concurrency = max(1, min(fit, max_concurrent or fit))
         self._job = ray.put(job)
-        fits = int(ray.cluster_resources().get("CPU", 0) // num_cpus)
-        self.concurrency = max(1, min(fits, max_concurrent or fits))
 
     def run(self, items: Iterable[Any]) -> Iterator[tuple[int, Any]]:
         """(position in `items`, result) of every job config, in the order they finish.

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from vistac.config import ConfigError
-from vistac.engine import EngineCfg, RayRunner
+from vistac.engine import ONLY_ASSIGNED_GPUS, EngineCfg, RayRunner
 from vistac.errors import UserError
 
 
@@ -24,6 +24,10 @@ def ray(ray_local):
 
 def square(x: int) -> int:
     return x * x
+
+
+def env_of(name: str) -> str | None:
+    return os.environ.get(name)
 
 
 def timed_nap(x: float) -> tuple[float, float]:
@@ -94,6 +98,10 @@ def test_concurrency_follows_the_cpus_and_the_cap(ray):
     assert _max_overlap(capped.map([0.1] * 3)) == 1
     assert RayRunner(ray, square, max_concurrent=8).concurrency == 2
     assert RayRunner(ray, square, num_cpus=2).concurrency == 1
+    with pytest.raises(UserError, match="asks for 4 CPU and 0 GPU, the cluster has 2 CPU"):
+        RayRunner(ray, square, num_cpus=4)
+    with pytest.raises(UserError, match="asks for 1 CPU and 1 GPU, the cluster has 2 CPU and 0"):
+        RayRunner(ray, square, num_gpus=1)
 
 
 def test_a_dead_worker_is_retried_by_ray(ray, tmp_path):
@@ -111,3 +119,8 @@ def test_errors_returned_raised_or_propagated(ray):
     assert type(info.value) is UserError  # as the job raised it: one line for the CLI
     with pytest.raises(ray.exceptions.RayTaskError, match="a bug"):
         RayRunner(ray, Picky(), returned_errors=(ValueError,)).map([3])
+
+
+def test_a_task_asking_for_no_gpu_sees_none_in_only_assigned_gpus(ray):
+    runner = RayRunner(ray, env_of, runtime_env=ONLY_ASSIGNED_GPUS)
+    assert runner.map(["CUDA_VISIBLE_DEVICES"]) == [""]

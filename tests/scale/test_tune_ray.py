@@ -76,17 +76,27 @@ def test_ray_engine_writes_what_the_local_engine_writes(ray_local, setup, tmp_pa
     out = tmp_path / "ray"
     assert main(["tune", "--out", str(out), "--trials", str(TRIALS), *args, "--engine", "ray"]) \
         == 0
-    assert "tune on Ray: 2 trials at once" in capsys.readouterr().out  # the fixture's 2 CPUs
+    assert "tune on Ray: 2 trials at once (1 CPU, 0 GPU each)" in capsys.readouterr().out
     _assert_same_tuning(ref, out)
 
 
 def test_ray_engine_resumes_after_a_trial_cap(ray_local, setup, tmp_path, capsys):
     args, ref = setup
     out = tmp_path / "capped"
-    assert _tune(out, args, "--engine", "ray", "--max-concurrent", "1", trials=1) == 0
+    assert main(["tune", "--out", str(out), "--trials", "1", *args, "--engine", "ray",
+                 "--trial-cpus", "2"]) == 0
+    assert "1 trial at once (2 CPU, 0 GPU each)" in capsys.readouterr().out  # of 2 CPUs
     assert [r["trial"] for r in _rows(out)] == ["0"]
     assert _tune(out, args, "--engine", "ray", "--resume") == 0
     _assert_same_tuning(ref, out)
+
+
+def test_trials_asking_for_more_than_the_cluster_has_are_refused(ray_local, setup, tmp_path,
+                                                                 capsys):
+    args, _ = setup
+    assert _tune(tmp_path / "t", args, "--engine", "ray", "--trial-gpus", "1") == 2
+    assert "a task asks for 1 CPU and 1 GPU, the cluster has 2 CPU and 0 GPU" \
+        in capsys.readouterr().err
 
 
 def test_killed_ray_driver_then_resume(ray_local, setup, tmp_path):
@@ -105,10 +115,44 @@ def test_killed_ray_driver_then_resume(ray_local, setup, tmp_path):
         time.sleep(0.05)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
+    _wait_until_no_task_runs()
     finished = len(_rows(out))
     assert 1 <= finished < TRIALS and json.loads((out / "pending.json").read_text())
     assert _tune(out, args, "--engine", "ray", "--resume") == 0
     _assert_same_tuning(ref, out)
+
+
+def _wait_until_no_task_runs(timeout_s: float = 60.0) -> None:
+    """Ray kills the workers running a dead driver's tasks; wait for that, so that no trial of
+    the killed driver still writes while the resumed one runs (as a user restarting at once
+    would, the next driver takes seconds to start)."""
+    deadline = time.time() + timeout_s
+    while time.time() < deadline:
+        if not any(name == "ray::_call" for name in _descendants().values()):
+            return
+        time.sleep(0.1)
+    raise AssertionError("a task of the killed driver still runs")
+
+
+def _descendants() -> dict[int, str]:
+    """pid -> process name of every descendant of this process (the module's Ray instance)."""
+    parents, names = {}, {}
+    for entry in os.scandir("/proc"):
+        if entry.name.isdigit():
+            try:
+                stat = open(os.path.join(entry.path, "stat")).read()
+            except OSError:
+                continue
+            names[int(entry.name)] = stat[stat.index("(") + 1:stat.rindex(")")]
+            parents[int(entry.name)] = int(stat[stat.rindex(")") + 2:].split()[1])
+    found, frontier = {}, [os.getpid()]
+    while frontier:
+        parent = frontier.pop()
+        for pid, ppid in parents.items():
+            if ppid == parent and pid not in found:
+                found[pid] = names[pid]
+                frontier.append(pid)
+    return found
 
 
 def test_engine_options_are_checked_before_ray_starts(setup, tmp_path, capsys):
@@ -118,8 +162,29 @@ def test_engine_options_are_checked_before_ray_starts(setup, tmp_path, capsys):
     assert "--ray-address: needs --engine ray" in capsys.readouterr().err
     assert _tune(out, args, "--max-concurrent", "2") == 2
     assert "--max-concurrent: needs --engine ray" in capsys.readouterr().err
+    assert _tune(out, args, "--trial-gpus", "1") == 2
+    assert "--trial-gpus: needs --engine ray" in capsys.readouterr().err
+    assert _tune(out, [*args, "--device", "cuda"], "--engine", "ray") == 2
+    assert "--device cuda: with --engine ray a trial sees only" in capsys.readouterr().err
+    assert _tune(out, args, "--engine", "ray", "--trial-cpus", "0") == 2
+    assert "--trial-cpus: must be > 0" in capsys.readouterr().err
     assert _tune(out, args, "--engine", "ray", "--max-concurrent", "0") == 2
     assert "--max-concurrent: must be >= 1" in capsys.readouterr().err
     assert _tune(out, args, "--engine", "ray", "--ray-address", "127.0.0.1:1") == 2
     assert "no Ray cluster answers there" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_fingertips_are_located_once_before_the_trials(setup, tmp_path):
+    """Trials running at once would each locate the fingertips of the dataset and race to write
+    the cache; the driver does it first (for a view that needs them)."""
+    from vistac_learn.train.config import protocol_cfg
+    from vistac_learn.tune.engines import warm_fingertip_cache
+
+    data = setup[0][1]
+    study = protocol_cfg("study", data, str(tmp_path / "r"), cache_dir=str(tmp_path / "c1"))
+    warm_fingertip_cache(study)
+    assert not (tmp_path / "c1").exists()  # the study's views do not use them
+    tip = protocol_cfg("default", data, str(tmp_path / "r"), cache_dir=str(tmp_path / "c2"))
+    warm_fingertip_cache(tip)
+    assert len(list((tmp_path / "c2").glob("fingertips-*.parquet"))) == 1

@@ -67,16 +67,19 @@ def _drawn(cfg: GenerateCfg, per_family: int = 3, seed: int = 0):
 
 def test_hand_closes_along_its_own_direction():
     """Both fingers push along one axis, so the thumb's push is off its surface normal wherever
-    the shape says, not drawn around it."""
+    the shape says, not drawn around it; each finger's own axis (its sensor frame) is drawn
+    around its normal."""
     cfg = GenerateCfg()
     drawn = _drawn(cfg)
-    push_to_normal = []
+    push_to_normal, axis_to_normal = [], []
     for grasp, _, _ in drawn:
-        np.testing.assert_allclose(grasp.approach[1], -grasp.approach[0], atol=1e-12)
-        push_to_normal.append(angle_deg(grasp.approach, -grasp.normal))
+        np.testing.assert_allclose(grasp.push[1], -grasp.push[0], atol=1e-12)
+        push_to_normal.append(angle_deg(grasp.push, -grasp.normal))
+        axis_to_normal.append(angle_deg(grasp.approach, -grasp.normal))
     push_to_normal = np.concatenate(push_to_normal)
     assert push_to_normal.max() <= cfg.grasp.max_push_angle_deg + 1e-9
     assert np.median(push_to_normal) >= 3.0
+    assert np.max(axis_to_normal) <= cfg.grasp.approach_spread_deg + 1e-9
 
 
 def test_labels_spread_inside_the_cone_at_mu_08():
@@ -84,6 +87,11 @@ def test_labels_spread_inside_the_cone_at_mu_08():
     than atan(0.8) + 2 deg."""
     cfg = GenerateCfg()
     cfg.physics.friction = 0.8
-    ang = np.concatenate([angle_deg(res.force_sensor, normal) for _, res, normal in _drawn(cfg)])
+    drawn = _drawn(cfg)
+    ang = np.concatenate([angle_deg(res.force_sensor, normal) for _, res, normal in drawn])
     assert np.median(ang) >= 3.0
     assert ang.max() <= np.degrees(np.arctan(0.8)) + 2.0
+    # Labels are informative: the force is not simply along each pad's z.
+    r_y = np.concatenate([res.force_sensor[:, 1] / np.linalg.norm(res.force_sensor[:, 1:], axis=1)
+                          for _, res, _ in drawn])
+    assert np.median(np.abs(r_y)) >= 0.05

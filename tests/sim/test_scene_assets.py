@@ -40,7 +40,9 @@ def _press_clean(scene: ObjectScene, cfg: GenerateCfg, presses: int = 2) -> None
             grasp = scene.sampler.sample(rng)
         except RejectedSample:  # the fingers do not fit beside the object there
             continue
-        scene.press.pose(grasp)
+        scene.press.pose(grasp)  # both phases of a press: approach, release, settle
+        _step_clean(scene.model, scene.press.data, cfg.physics.approach_steps)
+        scene.press.release()
         _step_clean(scene.model, scene.press.data, cfg.physics.settle_steps)
         done += 1
         if done == presses:

@@ -9,6 +9,7 @@ from vistac.engine import ENGINE_OPTIONS, EngineCfg, preflight
 from vistac.errors import UserError
 from vistac_learn.train.command import OPTIONS, check_paths, options_cfg
 from vistac_learn.train.config import PROTOCOLS, TrainCfg
+from vistac_learn.tune.engines import TRIAL_OPTIONS, TrialCfg
 
 
 def add_command(sub: argparse._SubParsersAction) -> None:
@@ -22,8 +23,9 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         "batch size, crop jitter; --space FILE changes it. Every `vistac train` option passes "
         "through to the trials. Writes OUT/trials.csv, best.json, convergence.png and one run "
         "folder per trial; --resume continues after a kill. --engine ray runs the trials as "
-        "Ray tasks, as many at once as the cluster has CPUs (at most --max-concurrent); on a "
-        "cluster --data and --out must be on a filesystem every node shares.",
+        "Ray tasks, as many at once as the cluster's CPUs and GPUs hold (--trial-cpus, "
+        "--trial-gpus; at most --max-concurrent); on a cluster --data and --out must be on a "
+        "filesystem every node shares.",
         formatter_class=HelpFormatter,
     )
     p.add_argument("--data", required=True, help="dataset directory")
@@ -33,6 +35,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--tune-seed", type=int, default=0, help="seed of the optimiser")
     p.add_argument("--resume", action="store_true", help="continue the tuning in --out")
     add_options(p, EngineCfg, ENGINE_OPTIONS)
+    add_options(p, TrialCfg, TRIAL_OPTIONS)
     p.add_argument("--protocol", default="default", choices=tuple(PROTOCOLS),
                    help="the trials' set of defaults (see `vistac train`)")
     add_options(p, TrainCfg, OPTIONS)
@@ -47,6 +50,11 @@ def _handler(args: argparse.Namespace) -> int:
     from vistac_learn.tune.space import load_space
 
     engine = from_options(EngineCfg, args, ENGINE_OPTIONS)
+    trial = from_options(TrialCfg, args, TRIAL_OPTIONS)
+    if engine.engine == "local":
+        for name in TRIAL_OPTIONS:
+            if getattr(trial, name) != getattr(TrialCfg(), name):
+                raise UserError(f"--{name.replace('_', '-')}: needs --engine ray")
     space = load_space(args.space)
     for d in space.dims:
         if getattr(args, d.name) is not None:
@@ -54,6 +62,9 @@ def _handler(args: argparse.Namespace) -> int:
             raise UserError(f"{flag}: tuned (in the search space); drop it, or take it out of "
                             "the space with --space")
     base = options_cfg(args)
+    if engine.engine == "ray" and base.device == "cuda" and trial.trial_gpus == 0:
+        raise UserError("--device cuda: with --engine ray a trial sees only the GPUs Ray gives "
+                        "it; give each one with --trial-gpus (e.g. 1)")
     check_paths(base)
     try:
         cfg = TuneCfg(out=args.out, trials=args.trials, seed=args.tune_seed)
@@ -61,10 +72,11 @@ def _handler(args: argparse.Namespace) -> int:
         raise UserError(f"--{str(exc).replace('seed:', 'tune-seed:')}") from None
     check_folder(cfg, base, space, args.resume)
     preflight(engine)
-    with tune_runner(engine, base) as runner:
+    with tune_runner(engine, base, trial, progress=not args.quiet) as runner:
         if engine.engine == "ray" and not args.quiet:
             k = runner.concurrency
-            print(f"tune on Ray: {k} trial{'s' if k > 1 else ''} at once", flush=True)
+            print(f"tune on Ray: {k} trial{'s' if k > 1 else ''} at once ({trial.trial_cpus:g} "
+                  f"CPU, {trial.trial_gpus:g} GPU each)", flush=True)
         res = run_tune(cfg, base, space, resume=args.resume, runner=runner,
                        progress=not args.quiet)
     if res.best is not None:

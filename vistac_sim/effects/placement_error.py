@@ -36,9 +36,11 @@ class PlacementError(ConfiguredEffect):
         shift = self.cfg.position_std * rng.standard_normal((2, 2))
         ang = np.radians(self.cfg.angle_std_deg) * rng.standard_normal(2)
         c, s = np.cos(ang), np.sin(ang)
-        a = grasp.approach
-        turned = np.c_[c * a[:, 0] - s * a[:, 1], s * a[:, 0] + c * a[:, 1]]
-        return grasp.moved(target=grasp.target + shift, approach=unit(turned))
+        def turn(a):
+            return unit(np.c_[c * a[:, 0] - s * a[:, 1], s * a[:, 0] + c * a[:, 1]])
+
+        return grasp.moved(target=grasp.target + shift, approach=turn(grasp.approach),
+                           push=None if grasp.push is None else turn(grasp.push))
 
 
 register_effect("placement_error", lambda cfg: [PlacementError(cfg)], cfg=PlacementErrorCfg)

@@ -30,8 +30,12 @@ class GraspCfg(Config):
 
     approach_spread_deg: float = param(
         20.0, ge=0, lt=90, flag="--approach-spread",
-        help="max degrees of the hand's closing direction off the index target's surface "
-        "normal (the thumb closes along the same axis, wherever it meets the object)")
+        help="max degrees of each finger's axis (its sensor's z) off its target's inward "
+        "surface normal")
+    closing_spread_deg: float = param(
+        20.0, ge=0, lt=90,
+        help="max degrees of the hand's closing axis (the push of both fingers) off the index "
+        "target's inward normal; the thumb closes along the same axis, where it meets the object")
     max_push_angle_deg: float = param(
         50.0, ge=0, lt=90,
         help="max degrees between the closing axis and the thumb target's surface normal "

@@ -166,6 +166,7 @@ def _config_row(config_id, obj: SceneObject, grasp: Grasp, res: PressResult, cle
         row |= {
             f"target_{f}_x": grasp.target[k, 0], f"target_{f}_y": grasp.target[k, 1],
             f"approach_{f}_x": grasp.approach[k, 0], f"approach_{f}_y": grasp.approach[k, 1],
+            f"push_{f}_x": grasp.push_dirs[k, 0], f"push_{f}_y": grasp.push_dirs[k, 1],
             f"tip_{f}_x": res.tip[k, 0], f"tip_{f}_y": res.tip[k, 1],
             f"penetration_{f}": res.penetration[k],
         }

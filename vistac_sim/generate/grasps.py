@@ -1,12 +1,13 @@
 """Grasp sampling: object pose, contact targets on the top-view outline, approach directions.
 
 The hand closes along its own direction, not along the surface normals: the index target is
-drawn on the object's outline at fingertip height and the closing direction within
-`approach_spread_deg` of its inward normal; the index pushes along it, and the thumb pushes back
-along the same axis, on the outline where that axis leaves the object. The thumb's push-to-normal
-angle is thus whatever the shape gives there (up to `max_push_angle_deg`). The whole finger (tip
-and shaft) must fit beside the object in its start pose, and the two fingers must not overlap.
-What cannot be met is a `RejectedSample`.
+drawn on the object's outline at fingertip height and the closing axis within
+`closing_spread_deg` of its inward normal; the index is pushed along it and the thumb back along
+it, on the outline where that axis leaves the object, so the thumb's push-to-normal angle is
+whatever the shape gives there (up to `max_push_angle_deg`). Each finger's own axis (its sensor
+frame, drawn in the image) points within `approach_spread_deg` of its target's inward normal. The
+whole finger (tip and shaft) must fit beside the object in its start pose, and the two fingers
+must not overlap. What cannot be met is a `RejectedSample`.
 
 Grasps are drawn against the collision geometry that MuJoCo simulates: the outline is the section
 of the object's convex collision pieces at the press height. For an object whose walls are not
@@ -88,8 +89,10 @@ class OutlineSampler:
         t = ((s - start) / (self.cum[seg] - start))[:, None]
         return self.p0[seg] * (1 - t) + self.p1[seg] * t, self.normals[seg]
 
-    def _approach(self, rng: np.random.Generator, normals: np.ndarray) -> np.ndarray:
-        spread = np.radians(self.cfg.grasp.approach_spread_deg)
+    def _approach(self, rng: np.random.Generator, normals: np.ndarray,
+                  spread_deg: float) -> np.ndarray:
+        """Unit directions within `spread_deg` (uniform) of the inward `normals`."""
+        spread = np.radians(spread_deg)
         ang = rng.uniform(-spread, spread, len(normals))
         c, s = np.cos(ang), np.sin(ang)
         inward = -normals
@@ -159,13 +162,15 @@ class OutlineSampler:
         yaw = float(rng.uniform(-np.pi, np.pi))
         xy = rng.uniform(-0.01, 0.01, 2)
         p_i, n_i = self._points(rng, 1)
-        close = self._approach(rng, n_i)[0]  # the hand's closing direction = the index's push
+        close = self._approach(rng, n_i, g.closing_spread_deg)[0]  # the index's push
         p_t, n_t = self.far_crossing(p_i[0], close)
         off = np.degrees(np.arccos(np.clip(close @ n_t, -1.0, 1.0)))
         if off > g.max_push_angle_deg:
             raise RejectedSample("no_opposing_thumb", f"the thumb's surface is {off:.0f} deg off "
                                  f"the closing axis (limit {g.max_push_angle_deg:g})")
-        local = Grasp(xy, yaw, np.stack([p_i[0], p_t]), np.stack([n_i[0], n_t]),
-                      np.stack([close, -close]))
+        normals = np.stack([n_i[0], n_t])
+        local = Grasp(xy, yaw, np.stack([p_i[0], p_t]), normals,
+                      self._approach(rng, normals, g.approach_spread_deg),
+                      push=np.stack([close, -close]))
         self.check(local)
         return to_world(local)

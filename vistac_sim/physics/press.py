@@ -1,7 +1,8 @@
 """The press: drive both fingertips into the object, settle, read and check the contact forces.
 
-Each tip is pushed along its own approach direction (the hand's closing direction) by a
-constant-force drive, and hangs on two sprung slides across it (`sim_assets/hand/`). A press has
+Each tip is pushed along the hand's closing direction (`Grasp.push`; the finger's own axis may
+point elsewhere) by a constant-force drive, and hangs on two sprung slides across it
+(`sim_assets/hand/`). A press has
 two phases. The approach runs frictionless (MuJoCo's contact override) with the lateral slides
 held, until the pad rests on the surface. Then friction is switched on and the springs are
 released, unloaded where they are: where the push lies inside the friction cone the pad sticks
@@ -68,26 +69,33 @@ class Press:
         model.opt.o_solimp[:] = [*phys.solimp, 0.5, 2.0]
         model.opt.o_margin = 0.0
         self._lateral = np.array(ids.lateral_qpos)
+        self._finger_body = [int(model.geom_bodyid[ids.pad[f]]) for f in FINGERS]
 
     def pose(self, grasp: Grasp) -> None:
         """Reset the data and place the object and both finger bases for `grasp`."""
         m, d, ids, h = self.model, self.data, self.ids, self.cfg.hand
         mujoco.mj_resetData(m, d)
         m.opt.enableflags |= _OVERRIDE  # frictionless approach (see the module's docstring)
+        m.opt.noslip_iterations = 0  # nothing to stop from slipping yet
         m.qpos_spring[self._lateral] = 0.0  # the last press moved them: same start every press
         m.body_pos[ids.object_body] = [grasp.object_xy[0], grasp.object_xy[1], 0.0]
         m.body_quat[ids.object_body] = yaw_quat(grasp.object_yaw)
         start = grasp.start(h.tip_radius, h.standoff)
+        push, axis = grasp.push_dirs, grasp.approach
         for k, f in enumerate(FINGERS):
+            # The base (and its slides) points along the push; the finger body turns to its axis.
+            push_yaw = np.arctan2(push[k, 1], push[k, 0])
             d.mocap_pos[ids.mocap[f]] = [start[k, 0], start[k, 1], h.height]
-            d.mocap_quat[ids.mocap[f]] = yaw_quat(np.arctan2(grasp.approach[k, 1],
-                                                             grasp.approach[k, 0]))
+            d.mocap_quat[ids.mocap[f]] = yaw_quat(push_yaw)
+            m.body_quat[self._finger_body[k]] = yaw_quat(np.arctan2(axis[k, 1], axis[k, 0])
+                                                      - push_yaw)
             d.ctrl[ids.actuator[f]] = h.press_force
 
     def release(self) -> None:
         """End of the approach: friction on, lateral springs released, unloaded where they are."""
         m, d = self.model, self.data
         m.opt.enableflags &= ~_OVERRIDE
+        m.opt.noslip_iterations = self.cfg.physics.noslip_iterations
         d.eq_active[self.ids.holds] = False
         m.qpos_spring[self._lateral] = d.qpos[self._lateral]
 

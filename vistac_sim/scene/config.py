@@ -30,12 +30,15 @@ class HandCfg(Config):
                         "of the hand that moves with it (a 30 g tip alone is jolted off the "
                         "surface by a 2 N push as it slips)")
     damping: float = param(12.0, ge=0,
-                           help="N s/m on the push slide, so the press settles quickly")
+                           help="N s/m on the push slide, so the press settles quickly (and a "
+                           "frictionless pad slides to rest within the press)")
     lateral_stiffness: float = param(
         2000.0, gt=0, help="N/m of the tip's springs across its push (sideways and up/down): "
         "the hand's compliance, which lets a tangential contact force build up as the pad slips")
-    lateral_damping: float = param(50.0, ge=0, help="N s/m on the sprung slides (overdamped, so "
-                                   "a slipping pad creeps to rest at the friction cone's edge)")
-    press_force: float = param(2.0, gt=0, help="N, drive force along the approach direction")
+    lateral_damping: float = param(50.0, ge=0, help="N s/m on the sprung slides (about critical "
+                                   "with the mass: a slipping pad comes to rest on the friction "
+                                   "cone's edge without overshoot)")
+    press_force: float = param(2.0, gt=0, help="N, drive force along the push direction (the "
+                               "hand's closing axis)")
     standoff: float = param(0.003, ge=0, help="m, gap between tip and target before the press")
     travel: float = param(0.012, gt=0, help='m, furthest the tip may move before "no contact"')
