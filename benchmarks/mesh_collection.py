@@ -145,6 +145,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--folder-n", type=int, default=60, help="configurations of the folder run")
     p.add_argument("--wheel", default=None, help="the pybullet wheel (else pip download)")
     p.add_argument("--work", default=None, help="folder for the collection and the datasets")
+    p.add_argument("--before-src", default=None,
+                   help="a source tree of vistac from before (e.g. `git archive a4f8fcf vistac "
+                   "vistac_sim sim_assets`): adds what its mesh loader and 12 mm section said")
     args = p.parse_args(argv)
     warnings.simplefilter("ignore")
     work = Path(args.work or tempfile.mkdtemp(prefix="mesh_collection_"))
@@ -158,6 +161,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{rows[-1]['mesh']:<45} {rows[-1]['status']:<8} {rows[-1]['configurations']:>3} "
               f"{rows[-1]['rejections'] or rows[-1]['reason']}", flush=True)
     table = pd.DataFrame(rows)
+    if args.before_src:
+        table.insert(1, "before", before(files, args.before_src))
     folder = work / "all"
     folder.mkdir(exist_ok=True)
     for f in files:
@@ -184,11 +189,16 @@ def write_report(path: Path, table: pd.DataFrame, manifest: dict, args, folder_c
         f"Source: {len(MEMBERS)} meshes of the `pybullet_data` folder in the PyPI wheel "
         f"`{PYBULLET}` (scans, CAD parts, toys, plate, tray, mug), plus variants of "
         "`sim_assets/meshes` broken on purpose and low/open shapes (`derived/`). Command: "
-        f"`python benchmarks/mesh_collection.py --n {args.n} --folder-n {args.folder_n}`.",
+        f"`python benchmarks/mesh_collection.py --n {args.n} --folder-n {args.folder_n}"
+        + (" --before-src SRC` (SRC: the tree before #10 parts 1-2); `before` says what the old "
+           "loader and its section at 12 mm did with the file (it never got to grasps)."
+           if args.before_src else "`."),
         "",
         f"One run per mesh ({args.n} configurations, 1 repeat): "
         + ", ".join(f"{v} {k}" for k, v in counts.items())
-        + f"; {int(table.loc[used, 'configurations'].sum())} configurations delivered.",
+        + f"; {int(table.loc[used, 'configurations'].sum())} configurations delivered."
+        + (f" Before: the old loader refused {int(table['before'].str.startswith('refused').sum())}"
+           f" of the {len(table)} files." if "before" in table else ""),
         "",
         _markdown(table.drop(columns=["cpu_s"])),
         "",
@@ -202,6 +212,28 @@ def write_report(path: Path, table: pd.DataFrame, manifest: dict, args, folder_c
         "",
     ]
     path.write_text("\n".join(lines))
+
+
+BEFORE = """
+import sys, warnings
+warnings.simplefilter("ignore")
+from vistac.errors import UserError
+from vistac_sim.objects.meshes import load_mesh, mesh_section, scale_to_footprint
+for f in sys.argv[1:]:
+    try:
+        mesh_section(scale_to_footprint(load_mesh(f), 0.055), 0.012, f)
+        print("loads")
+    except UserError as e:
+        print("refused: " + str(e).split(": ", 1)[1])
+"""
+
+
+def before(files: list[Path], src: str) -> list[str]:
+    """What the old loader (and its section at the fingertip height) said about each file."""
+    env = {**os.environ, "PYTHONPATH": src}
+    out = subprocess.run([sys.executable, "-c", BEFORE, *map(str, files)], env=env,
+                         capture_output=True, text=True, check=True, cwd=src).stdout
+    return out.splitlines()
 
 
 def _markdown(df: pd.DataFrame) -> str:

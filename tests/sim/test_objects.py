@@ -4,6 +4,7 @@ import json
 
 import numpy as np
 import pytest
+import shapely
 import trimesh
 from shapely.geometry import box
 from shapely.ops import unary_union
@@ -73,6 +74,10 @@ def test_decomposition_is_cached_by_mesh_hash(tmp_path, monkeypatch):
     monkeypatch.setattr(coacd, "run_coacd", lambda *a, **k: pytest.fail("decomposed twice"))
     again = decomposition.convex_decomposition(mesh, tmp_path)
     assert len(again) == len(pieces)
+    bigger = decomposition.convex_decomposition(meshes.scale_to_footprint(_l_mesh(), 0.07),
+                                                tmp_path)  # another footprint: same cache entry
+    assert sum(p.volume for p in bigger) == pytest.approx(
+        sum(p.volume for p in pieces) * 1.4**3, rel=1e-6)
 
 
 def test_generate_skips_bad_meshes_in_a_folder_and_strict_aborts(tmp_path, bad_meshes,
@@ -114,12 +119,12 @@ def _open_cup(radius=20.0, height=45.0):
     return trimesh.Trimesh(cyl.vertices, cyl.faces[keep])
 
 
-def _mushroom():
-    """A wide slab on a thin stem: at any press height the slab overhangs the fingertip's band,
-    so every finger would start inside it (no valid grasp, deterministically)."""
-    stem = trimesh.creation.box([10, 10, 14]).apply_translation([0, 0, 7])
-    slab = trimesh.creation.box([60, 60, 6]).apply_translation([0, 0, 17])
-    return trimesh.util.concatenate([stem, slab])
+def _prism(tmp_path):
+    """A triangular prism: wherever the closing axis leaves it, the far side is 40 deg or more
+    off the axis, so with `max_push_angle_deg` 10 no grasp is valid (a box's far side is not)."""
+    tri = trimesh.creation.extrude_polygon(
+        shapely.Polygon([(0, 0), (40, 0), (20, 34.64)]), 30)
+    tri.export(tmp_path / "prism.stl")
 
 
 def _run(args, capsys=None):
@@ -165,12 +170,14 @@ def test_mesh_that_stays_open_is_collided_through_its_decomposition(tmp_path, mo
     assert len(cached) == 1
 
 
-def test_open_cup_generates_labels(tmp_path, monkeypatch):
+def test_open_cup_generates_labels(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("VISTAC_CACHE", str(tmp_path / "cache"))
     _open_cup().export(tmp_path / "cup.obj")
-    rc, _ = _run(["--n", "3", "--repeats", "1", "--objects", tmp_path / "cup.obj", "--out",
-                  tmp_path / "ds"])
+    rc, io = _run(["--n", "3", "--repeats", "1", "--objects", tmp_path / "cup.obj", "--out",
+                   tmp_path / "ds"], capsys)
     assert rc == 0
+    summary = [line.split() for line in io.out.splitlines() if line.startswith("cup_000")]
+    assert summary and summary[0][1:4] == ["used", "3", "3"]  # end-of-run summary per object
     manifest = json.loads((tmp_path / "ds" / "manifest.json").read_text())
     assert manifest["counts"]["configs"] == 3
 
@@ -193,27 +200,34 @@ def test_flat_plate_is_pressed_at_half_its_height(tmp_path, monkeypatch):
     assert manifest["per_object"][0]["presses"] == 6
 
 
-def test_object_without_valid_grasp_is_skipped_and_the_count_delivered(tmp_path, monkeypatch,
-                                                                       capsys):
+def test_object_without_valid_grasp_is_skipped_and_the_count_delivered(tmp_path, monkeypatch):
+    from vistac_sim.generate.config import GenerateCfg, GraspCfg
+    from vistac_sim.generate.objects_report import format_summary
+    from vistac_sim.generate.run import generate
+    from vistac_sim.objects.config import ObjectsCfg
+
     monkeypatch.setenv("VISTAC_CACHE", str(tmp_path / "cache"))
     folder = tmp_path / "objs"
     folder.mkdir()
     trimesh.creation.box([30, 20, 40]).export(folder / "box.stl")
-    _mushroom().export(folder / "mushroom.stl")
-    out = tmp_path / "ds"
-    rc, io = _run(["--n", "5", "--repeats", "2", "--objects", folder, "--out", out], capsys)
-    assert rc == 0, io.err
-    manifest = json.loads((out / "manifest.json").read_text())
+    _prism(folder)
+
+    def cfg(strict=False):
+        return GenerateCfg(n=5, repeats=2, grasp=GraspCfg(max_push_angle_deg=10),
+                           objects=ObjectsCfg(paths=(str(folder),), strict=strict))
+
+    manifest = generate(cfg(), tmp_path / "ds", workers=1, progress=False)
     assert manifest["counts"]["configs"] == 5 and manifest["counts"]["presses"] == 10
     rows = {r["path"].rsplit("/", 1)[-1]: r for r in manifest["per_object"]}
-    assert rows["mushroom.stl"]["status"] == "skipped"
-    assert "no valid grasp" in rows["mushroom.stl"]["reason"]
-    assert rows["mushroom.stl"]["rejections"] == {"unreachable": 60}
+    assert rows["prism.stl"]["status"] == "skipped"
+    assert "no valid grasp in 60 draws" in rows["prism.stl"]["reason"]
+    assert rows["prism.stl"]["rejections"] == {"no_opposing_thumb": 60}
     assert rows["box.stl"]["status"] == "used"
     assert rows["box.stl"]["configurations"] == 5 and rows["box.stl"]["presses"] == 10
-    assert "mushroom" in io.out and "no valid grasp" in io.out  # the end-of-run summary
-    rc, io = _run(["--n", "5", "--objects", folder, "--out", tmp_path / "s", "--strict"], capsys)
-    assert rc == 2 and "mushroom.stl" in io.err and "no valid grasp" in io.err
+    summary = format_summary(manifest["per_object"])  # printed at the end of `vistac generate`
+    assert "prism" in summary and "no valid grasp" in summary and "no_opposing_thumb 60" in summary
+    with pytest.raises(UserError, match=r"prism.stl\): no valid grasp .*--strict"):
+        generate(cfg(strict=True), tmp_path / "s", workers=1, progress=False)
 
 
 def test_strict_refuses_a_broken_mesh_naming_the_file(tmp_path, bad_meshes, monkeypatch, capsys):
@@ -242,3 +256,28 @@ def test_manifest_lists_per_object_counts(tmp_path, monkeypatch):
     assert total == manifest["redraws"]["total"]
     for r in rows:
         assert r["status"] == "used" and r["presses"] == 2 * r["configurations"]
+
+
+def test_configuration_moves_on_when_its_object_fails_during_the_run(tmp_path, monkeypatch):
+    from collections import Counter
+
+    from vistac_sim.generate import configuration
+    from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.generate.run import generate
+    from vistac_sim.generate.scenes import NoValidGrasp
+    from vistac_sim.objects.config import ObjectsCfg
+
+    real = configuration.draw_grasp
+
+    def flaky(scene, rng, cfg):  # the first object passes the screen, then never again
+        if scene.obj.object_id.endswith("_000"):
+            raise NoValidGrasp(scene.obj.object_id, Counter(no_contact=60))
+        return real(scene, rng, cfg)
+
+    monkeypatch.setattr(configuration, "draw_grasp", flaky)
+    cfg = GenerateCfg(n=6, repeats=1, objects=ObjectsCfg(n_objects=2, families=("box",)))
+    manifest = generate(cfg, tmp_path / "ds", workers=1, progress=False)
+    assert manifest["counts"]["configs"] == 6
+    first, second = manifest["per_object"]
+    assert first["configurations"] == 0 and first["rejections"]["no_contact"] % 60 == 0
+    assert first["rejections"]["no_contact"] > 0 and second["configurations"] == 6

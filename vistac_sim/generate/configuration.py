@@ -8,6 +8,7 @@ runs it or in which order.
 from __future__ import annotations
 
 import json
+from collections import Counter
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +30,7 @@ from vistac_sim.scene.grasp import Grasp
 
 STREAMS = ("grasp", "scene_effects", "force_effects", "image_effects", "session",
            "sensor_effects")
+FALLBACK_ROUNDS = 5  # passes over the library before a configuration gives up
 SCENE_EFFECT_TRIES = 10  # draws of the scene effects per repeat before the unperturbed grasp
 
 
@@ -70,7 +72,8 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
 
     An object that gives no valid grasp in `max_redraws` draws hands the configuration on to the
     next object of the library (in a fixed order, so the result stays a pure function of the
-    seed); its rejected draws are kept in the `failed_objects` column.
+    seed; after the last object the first one again, for `FALLBACK_ROUNDS` rounds); the rejected
+    draws are kept in the `failed_objects` column.
 
     Raises:
         RuntimeError: when no object of the library gave a valid grasp.
@@ -78,14 +81,14 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     rng = ConfigStreams(seed, config_id)
     n_obj = len(scenes.specs)
     first = object_index(seed, config_id, n_obj)
-    failed: dict[str, dict[str, int]] = {}
-    for j in range(n_obj):
+    failed: dict[str, Counter] = {}
+    for j in range(n_obj * FALLBACK_ROUNDS):
         scene = scenes.get((first + j) % n_obj)
         try:
             grasp, res, normal, redraws = draw_grasp(scene, rng["grasp"], cfg)
             break
         except NoValidGrasp as exc:
-            failed[exc.object_id] = dict(sorted(exc.redraws.items()))
+            failed.setdefault(exc.object_id, Counter()).update(exc.redraws)
     else:
         raise RuntimeError(f"configuration {config_id}: no object gave a valid grasp "
                            f"({json.dumps(failed)})")
@@ -117,7 +120,9 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     row["scene_effect_fallbacks"] = fallbacks  # repeats that kept the unperturbed force
     row["redraws"] = int(sum(redraws.values()))
     row["redraw_reasons"] = ",".join(f"{k}:{v}" for k, v in sorted(redraws.items()))
-    row["failed_objects"] = json.dumps(failed) if failed else ""
+    row["failed_objects"] = json.dumps({k: dict(sorted(v.items())) for k, v in failed.items()})
+    if not failed:
+        row["failed_objects"] = ""
     row |= view_cols
     return Configuration(
         row=row,

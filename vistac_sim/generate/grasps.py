@@ -10,9 +10,10 @@ whole finger (tip and shaft) must fit beside the object in its start pose, and t
 must not overlap. What cannot be met is a `RejectedSample`.
 
 Grasps are drawn against the collision geometry that MuJoCo simulates: the outline is the section
-of the object's convex collision pieces at the press height, and a finger fits beside an object
-whose walls are not vertical (a mesh) only if, at several heights across the tip, the pieces'
-section keeps clear of the tip's width there, so that no start penetrates.
+of the object's convex collision pieces at the press height. For an object whose walls are not
+vertical (a mesh) the pieces are also sliced at several heights across the tip: the outline is
+where the tip first touches any of these slices, and a finger fits only if it keeps clear of each
+slice by the tip's width at that height, so that no start penetrates.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import shapely
 from shapely.geometry import LineString, Polygon
+from shapely.ops import unary_union
 
 from vistac.dataset import FINGERS
 from vistac_sim.objects.decomposition import pieces_section
@@ -35,7 +37,7 @@ if TYPE_CHECKING:
 
 # Heights across the tip (fractions of its radius above and below the axis) where the collision
 # pieces of a mesh are sliced for the "finger fits" check.
-CLEARANCE_LEVELS = (-0.95, -0.8, -0.5, 0.5, 0.8, 0.95)
+CLEARANCE_LEVELS = (-0.95, -0.85, -0.7, -0.5, -0.25, 0.25, 0.5, 0.7, 0.85, 0.95)
 
 
 class OutlineSampler:
@@ -70,7 +72,15 @@ class OutlineSampler:
             geom = pieces_section(obj.pieces, z + f * r)
             if not geom.is_empty:
                 levels.append((geom, r * float(np.sqrt(1 - f * f))))
-        return cls(obj.section, cfg, tuple(levels))
+        # Where the tip's centre first touches the pieces (the section at the press height and
+        # those above and below, each widened by the tip's width there), less the tip radius:
+        # the outline a bulging object presents to the pad.
+        reach = unary_union([obj.section.buffer(r, quad_segs=8)]
+                            + [g.buffer(w, quad_segs=8) for g, w in levels]).buffer(-r)
+        if reach.geom_type != "Polygon":
+            reach = max(getattr(reach, "geoms", [obj.section]), key=lambda g: g.area)
+        outline = reach if reach.area >= obj.section.area else obj.section
+        return cls(shapely.Polygon(outline.exterior), cfg, ((obj.section, r), *levels))
 
     def _points(self, rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray]:
         s = rng.uniform(0, self.cum[-1], k)

@@ -26,7 +26,7 @@ class ObjectsCfg(Config):
         help="longest top-view side of objects, metres")
     height: tuple[float, float] = param((0.03, 0.05), gt=0, le=1,
                                         help="m, extrusion height of procedural objects")
-    min_height: float = param(0.002, gt=0,
+    min_height: float = param(0.0005, gt=0,
                               help="m, lowest object (after scaling) that can be pressed; flat "
                               "parts lower than twice the fingertip height are pressed at half "
                               "their height")

@@ -23,7 +23,8 @@ COACD_BUDGET = {"max_convex_hull": 16, "mcts_iterations": 40, "mcts_nodes": 10,
 
 def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
                          threshold: float = 0.05) -> list[trimesh.Trimesh]:
-    """Convex pieces of a mesh: itself if convex, else CoACD, cached on disk by mesh hash.
+    """Convex pieces of a mesh: itself if convex, else CoACD, cached on disk by the hash of the
+    mesh scaled to the unit cube.
 
     An open mesh (not watertight) goes through CoACD's manifold pre-processing, which needs no
     closed surface.
@@ -32,27 +33,33 @@ def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
     if closed and mesh.convex_hull.volume - mesh.volume <= 1e-3 * mesh.volume:
         return [mesh.convex_hull]
     mode = "auto" if closed else "on"
+    # Decompose (and key the cache by) the mesh scaled into the unit cube, so that one mesh at
+    # different footprints is decomposed once.
+    lo, size = mesh.bounds[0], float(mesh.extents.max())
+    unit = np.round((mesh.vertices - lo) / size, 9)
     key = hashlib.sha256(
-        mesh.vertices.astype("<f8").tobytes() + mesh.faces.astype("<i8").tobytes()
+        unit.astype("<f8").tobytes() + mesh.faces.astype("<i8").tobytes()
         + f"coacd-{threshold}-{mode}-{sorted(COACD_BUDGET.items())}".encode()
     ).hexdigest()[:32]
     cache = Path(cache_dir or default_cache_dir()) / f"{key}.npz"
     if cache.exists():
         data = np.load(cache)
-        return [trimesh.Trimesh(data[f"v{i}"], data[f"f{i}"]) for i in range(int(data["n"]))]
+        return [trimesh.Trimesh(data[f"v{i}"] * size + lo, data[f"f{i}"])
+                for i in range(int(data["n"]))]
     import coacd
 
     coacd.set_log_level("error")
-    parts = coacd.run_coacd(coacd.Mesh(mesh.vertices, mesh.faces), threshold=threshold, seed=0,
+    parts = coacd.run_coacd(coacd.Mesh(unit, mesh.faces), threshold=threshold, seed=0,
                             preprocess_mode=mode, **COACD_BUDGET)
-    pieces = [trimesh.Trimesh(np.asarray(v), np.asarray(f)).convex_hull for v, f in parts]
-    pieces = [p for p in pieces if p.volume > 0]
+    unit_pieces = [trimesh.Trimesh(np.asarray(v), np.asarray(f)).convex_hull for v, f in parts]
+    unit_pieces = [p for p in unit_pieces if p.volume > 0]
+    pieces = [trimesh.Trimesh(p.vertices * size + lo, p.faces) for p in unit_pieces]
     cache.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_temporaries(cache.parent)  # a killed writer's leftovers
-    arrays = {f"v{i}": p.vertices for i, p in enumerate(pieces)}
-    arrays.update({f"f{i}": p.faces for i, p in enumerate(pieces)})
+    arrays = {f"v{i}": p.vertices for i, p in enumerate(unit_pieces)}
+    arrays.update({f"f{i}": p.faces for i, p in enumerate(unit_pieces)})
     buf = io.BytesIO()
-    np.savez(buf, n=len(pieces), **arrays)
+    np.savez(buf, n=len(unit_pieces), **arrays)
     atomic_write_bytes(cache, buf.getvalue())
     return pieces
 

@@ -77,7 +77,7 @@ def procedural_library(cfg: ObjectsCfg, seed: int) -> list[ObjectSpec]:
     return specs
 
 
-def press_height(object_height: float, finger_height: float, min_height: float = 0.002,
+def press_height(object_height: float, finger_height: float, min_height: float = 0.0005,
                  name: str = "object") -> float:
     """Height of the fingertip axis for an object of `object_height` (module docstring).
 
@@ -91,7 +91,7 @@ def press_height(object_height: float, finger_height: float, min_height: float =
 
 
 def build_object(spec: ObjectSpec, finger_height: float, min_wall: float = 0.001,
-                 cache_dir: Path | None = None, min_height: float = 0.002) -> SceneObject:
+                 cache_dir: Path | None = None, min_height: float = 0.0005) -> SceneObject:
     """Build the meshes, collision pieces and press-height section of one object.
 
     A mesh's section is the section of its collision pieces (what the fingers will touch).
