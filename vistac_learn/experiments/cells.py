@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from vistac.config import to_dict
 from vistac.dataset.files import atomic_write_bytes, atomic_write_json
 from vistac.errors import UserError
 from vistac_learn.train.job import JobCfg, JobResult, LocalRunner
@@ -58,6 +59,21 @@ class Cell:
     job: JobCfg
     phase: int = 0
     needs: str | None = None
+
+
+def open_experiment(cfg: Any, base: Any, kind: str) -> Path:
+    """Check (or create) the experiment folder ``cfg.out`` for these settings; return it.
+
+    Args:
+        cfg: The experiment's config (its ``out`` is the folder).
+        base: The runs' training settings (their data and out are set per cell).
+    """
+    meta = {"experiment": kind,
+            "settings": {k: v for k, v in to_dict(cfg).items() if k != "out"},
+            "train": {k: v for k, v in to_dict(base).items() if k not in ("data", "out")}}
+    out = Path(cfg.out)
+    check_folder(out, meta, kind)
+    return out
 
 
 def check_folder(out: Path, meta: dict[str, Any], kind: str) -> None:

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from vistac.config import Config, ConfigError, param, to_dict
+from vistac.config import Config, ConfigError, param
 from vistac.dataset import atomic_write_json, open_dataset, press_row, unit_labels, write_table
 from vistac.dataset.schema import CONFIGS, FINGERS, IMAGES, MANIFEST, PRESSES, clean_force_columns
 from vistac.errors import UserError
@@ -194,10 +194,7 @@ def run_label_noise(cfg: LabelNoiseCfg, base: TrainCfg, runner: Any = None,
     Raises:
         UserError: an --out holding another experiment or other settings, bad data.
     """
-    out = Path(cfg.out)
-    meta = {"experiment": KIND, "settings": {k: v for k, v in to_dict(cfg).items() if k != "out"},
-            "train": {k: v for k, v in to_dict(base).items() if k not in ("data", "out")}}
-    C.check_folder(out, meta, KIND)
+    out = C.open_experiment(cfg, base, KIND)
     angles = prepare_data(cfg)
     cells = make_cells(cfg, base)
 

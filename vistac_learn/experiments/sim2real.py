@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from vistac.config import Config, ConfigError, param, to_dict
+from vistac.config import Config, ConfigError, param
 from vistac.errors import UserError
 from vistac_learn.experiments import cells as C
 from vistac_learn.train.config import FREEZE, TrainCfg
@@ -103,10 +103,7 @@ def run_sim2real(cfg: Sim2RealCfg, base: TrainCfg, runner: Any = None,
     Raises:
         UserError: an --out holding another experiment or other settings, bad data.
     """
-    out = Path(cfg.out)
-    meta = {"experiment": KIND, "settings": {k: v for k, v in to_dict(cfg).items() if k != "out"},
-            "train": {k: v for k, v in to_dict(base).items() if k not in ("data", "out")}}
-    C.check_folder(out, meta, KIND)
+    out = C.open_experiment(cfg, base, KIND)
     cells = make_cells(cfg, base)
 
     def on_rows(rows: list[dict[str, Any]]) -> None:
