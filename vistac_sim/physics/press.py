@@ -2,16 +2,15 @@
 
 Each tip is pushed along the hand's closing direction (`Grasp.push`; the finger's own axis may
 point elsewhere) by a constant-force drive, and hangs on two sprung slides across it
-(`sim_assets/hand/`). A press has
-two phases. The approach runs frictionless (MuJoCo's contact override) with the lateral slides
-held, until the pad rests on the surface. Then friction is switched on and the springs are
-released, unloaded where they are: where the push lies inside the friction cone the pad sticks
-and the force follows the push; outside it the pad slips, loading the springs, until the force
-lies on the cone's edge: angle(force, normal) = min(angle(push, normal), atan(mu)). (Without the
-first phase, a pad that lands with some speed slips a fraction of a millimetre on MuJoCo's soft
-contact before friction grips, or friction locks it against the holds; either leaves the springs
-loaded and tilts a sticking force by degrees.) The noslip solver (`PhysicsCfg`) stops the slow
-creep of a sticking soft contact.
+(`sim_assets/hand/`). A press has two phases. The approach runs frictionless (MuJoCo's contact
+override) with the lateral slides held, until the pad rests on the surface. Then friction is
+switched on and the springs are released, unloaded where they are: where the push lies inside
+the friction cone the pad sticks and the force follows the push; outside it the pad slips,
+loading the springs, until the force lies on the cone's edge: angle(force, normal) =
+min(angle(push, normal), atan(mu)). (Without the first phase, a pad that lands with some speed
+slips a fraction of a millimetre on MuJoCo's soft contact before friction grips, or friction
+locks it against the holds; either leaves the springs loaded and tilts a sticking force by
+degrees.) The noslip solver (`PhysicsCfg`) stops the slow creep of a sticking soft contact.
 
 Forces are read two independent ways and must agree: (1) summing `mj_contactForce` over the
 pad's contacts, rotated from each contact frame to the world; (2) MuJoCo's `contact` sensor with
