@@ -13,7 +13,6 @@ import json
 import shutil
 from pathlib import Path
 
-import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 
@@ -101,15 +100,20 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
     return set()
 
 
+def _read_shard(path: Path) -> pa.Table:
+    """One shard's table (a small file: the plain reader, one thread, ~2x cheaper than
+    `pq.read_table`)."""
+    with pq.ParquetFile(path) as fh:
+        return fh.read(use_threads=False)
+
+
 def finalize(out: Path, n_chunks: int, manifest: dict, split_by: str, fractions, seed: int) -> dict:
     """Merge shards into the final tables, write the manifest last, remove `.partial/`."""
-    configs, presses = [], []
-    for c in range(n_chunks):
-        cpath, ppath = shard_paths(out, c)
-        configs.append(pd.read_parquet(cpath))
-        presses.append(pd.read_parquet(ppath))
-    cfg_df = pd.concat(configs).sort_values("config_id").reset_index(drop=True)
-    prs_df = pd.concat(presses).sort_values(["config_id", "repeat"]).reset_index(drop=True)
+    paths = [shard_paths(out, c) for c in range(n_chunks)]
+    cfg_df, prs_df = (pa.concat_tables([_read_shard(p[k]) for p in paths],
+                                       promote_options="default").to_pandas() for k in (0, 1))
+    cfg_df = cfg_df.sort_values("config_id").reset_index(drop=True)
+    prs_df = prs_df.sort_values(["config_id", "repeat"]).reset_index(drop=True)
     cfg_df.insert(4, "split", assign_splits(cfg_df, split_by, fractions, seed))
     write_table(out / CONFIGS, cfg_df)
     write_table(out / PRESSES, prs_df)

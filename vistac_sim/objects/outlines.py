@@ -122,20 +122,34 @@ def convex_pieces(poly: Polygon, tol: float = 1e-9) -> list[Polygon]:
         return [shapely.convex_hull(poly)]
     tris = list(shapely.constrained_delaunay_triangles(poly).geoms)
     pieces = [t for t in tris if t.area > tol * poly.area]
+    # Greedy: merge the first pair (i < j, in list order) that shares an edge and whose union
+    # is convex, then scan again. A pair that failed keeps failing until one of its pieces
+    # changes, so failed pairs are remembered by the pieces' serial numbers (each merged piece
+    # gets a new one): the result is that of the plain rescan, without repeating its tests.
+    serial = list(range(len(pieces)))
+    fresh = len(pieces)
+    failed: set[tuple[int, int]] = set()
     merged = True
     while merged:
         merged = False
         for i in range(len(pieces)):
             for j in range(i + 1, len(pieces)):
+                key = (serial[i], serial[j])
+                if key in failed:
+                    continue
                 a, b = pieces[i], pieces[j]
                 if a.intersection(b).length <= 1e-12:  # must share an edge
+                    failed.add(key)
                     continue
                 u = shapely.convex_hull(unary_union([a, b]))
                 if abs(u.area - a.area - b.area) <= 1e-9 * poly.area + 1e-18:
                     pieces[i] = u
+                    serial[i], fresh = fresh, fresh + 1
                     pieces.pop(j)
+                    serial.pop(j)
                     merged = True
                     break
+                failed.add(key)
             if merged:
                 break
     return pieces

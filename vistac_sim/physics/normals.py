@@ -78,6 +78,20 @@ class TriangleIndex:
         inv = np.zeros_like(gram)
         inv[ok] = np.linalg.inv(gram[ok])
         self.bary = inv @ np.stack([e1, e2], 1)  # (F, 2, 3)
+        # What the fast path reads per face, in one row (one gather per query): first vertex,
+        # normal, barycentric rows.
+        self._rows = np.concatenate([self.tri[:, 0], self.face_normals,
+                                     self.bary.reshape(-1, 6)], axis=1)  # (F, 12)
+        self._box: tuple[float, np.ndarray, np.ndarray] | None = None
+
+    def _near(self, c: np.ndarray, radius: float) -> np.ndarray:
+        """Indices of the faces whose box lies within `radius` of `c` (all if none)."""
+        if self._box is None or self._box[0] != radius:
+            self._box = (radius, self.lo - radius, self.hi + radius)
+        _, lo, hi = self._box
+        near = ((lo <= c) & (c <= hi)).all(1)
+        idx = near.nonzero()[0]
+        return idx if len(idx) else np.arange(len(self.tri))
 
     def closest(self, point: np.ndarray, radius: float = 0.002, tol: float = 1e-9,
                 around: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -89,9 +103,7 @@ class TriangleIndex:
         on their common edge or corner); their normals span the normal cone there.
         """
         p = np.asarray(point, float)
-        c = p if around is None else np.asarray(around, float)
-        near = np.all((self.lo - radius <= c) & (c <= self.hi + radius), axis=1)
-        idx = np.flatnonzero(near) if near.any() else np.arange(len(self.tri))
+        idx = self._near(p if around is None else np.asarray(around, float), radius)
         fast = self._inside_face(p, idx)
         if fast is not None:
             return fast
@@ -101,23 +113,25 @@ class TriangleIndex:
         touching = idx[dist <= dist[k] + tol]
         return q[k], self.face_normals[touching]
 
-
     def _inside_face(self, p: np.ndarray, idx: np.ndarray,
                      margin: float = 1e-6) -> tuple[np.ndarray, np.ndarray] | None:
         """The common case, exactly: `p` projects well inside face j, and no other candidate
         that is not coplanar with j has its plane closer (a face's distance is at least its
         plane's), so j holds the closest point and it lies on no edge. None otherwise."""
-        w = p - self.tri[idx, 0]
-        plane = np.einsum("ij,ij->i", w, self.face_normals[idx])
-        uv = np.einsum("ijk,ik->ij", self.bary[idx], w)
-        inside = (uv[:, 0] > margin) & (uv[:, 1] > margin) & (uv.sum(1) < 1 - margin)
+        rows = self._rows[idx]
+        w = p - rows[:, 0:3]
+        normals = rows[:, 3:6]
+        plane = (w * normals).sum(1)
+        u = (rows[:, 6:9] * w).sum(1)
+        v = (rows[:, 9:12] * w).sum(1)
+        inside = (u > margin) & (v > margin) & (u + v < 1 - margin)
         if not inside.any():
             return None
         dist = np.abs(plane)
         j = int(np.argmin(np.where(inside, dist, np.inf)))
-        n = self.face_normals[idx[j]]
-        coplanar = (self.face_normals[idx] @ n > _COPLANAR_COS) & (np.abs(plane - plane[j]) < 1e-12)
-        if np.any(~coplanar & (dist <= dist[j] + 1e-12)):
+        n = normals[j]
+        coplanar = (normals @ n > _COPLANAR_COS) & (np.abs(plane - plane[j]) < 1e-12)
+        if ((~coplanar) & (dist <= dist[j] + 1e-12)).any():
             return None
         return p - plane[j] * n, n[None]
 

@@ -12,14 +12,20 @@ def boxes_from_outlines(capsules_px, image_size: int) -> np.ndarray:
     the image; an invisible group gets a zero box."""
     boxes = np.zeros((len(capsules_px), 4))
     for k, caps in enumerate(capsules_px):
-        pts = np.vstack([clipped_capsule_points(p0, p1, r, image_size) for p0, p1, r in caps])
-        if len(pts):
-            lo, hi = pts.min(0), pts.max(0)
-            boxes[k] = [lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1]]
+        pts = [p for p0, p1, r in caps for p in clipped_points(p0, p1, r, image_size)]
+        if pts:
+            xs, ys = [p[0] for p in pts], [p[1] for p in pts]
+            boxes[k] = [min(xs), min(ys), max(xs) - min(xs), max(ys) - min(ys)]
     return boxes
 
 
 def clipped_capsule_points(p0, p1, radius: float, size: float) -> np.ndarray:
+    """`clipped_points` as an (m, 2) array."""
+    pts = clipped_points(p0, p1, radius, size)
+    return np.array(pts) if pts else np.empty((0, 2))
+
+
+def clipped_points(p0, p1, radius: float, size: float) -> list[tuple[float, float]]:
     """Points of (capsule p0-p1 widened by `radius`) within [0, size]^2 whose box is exactly the
     box of that intersection (empty if they do not meet).
 
@@ -36,29 +42,33 @@ def clipped_capsule_points(p0, p1, radius: float, size: float) -> np.ndarray:
     lo_x, hi_x = min(x0, x1) - r, max(x0, x1) + r
     lo_y, hi_y = min(y0, y1) - r, max(y0, y1) + r
     if lo_x >= 0 and lo_y >= 0 and hi_x <= size and hi_y <= size:  # wholly inside
-        return np.array(ext)
+        return ext
     if lo_x > size or lo_y > size or hi_x < 0 or hi_y < 0:  # wholly outside
-        return np.empty((0, 2))
-    cand = ext + [(0.0, 0.0), (size, 0.0), (0.0, size), (size, size)]
+        return []
+    # Corners the capsule's box holds; crossings only of the side lines its box straddles (the
+    # boundary meets no other side line, or touches it at an extreme point already listed).
+    cand = ext + [(cx, cy) for cx in (0.0, size) for cy in (0.0, size)
+                  if lo_x <= cx <= hi_x and lo_y <= cy <= hi_y]
     dx, dy = x1 - x0, y1 - y0
     length = math.hypot(dx, dy)
+    nx, ny = (-dy / length * r, dx / length * r) if length > 0 else (0.0, 0.0)
     for line in (0.0, size):
+        cross_x, cross_y = lo_x < line < hi_x, lo_y < line < hi_y
         for cx, cy in ((x0, y0), (x1, y1)):  # end circles crossing x = line and y = line
             h2 = r * r - (line - cx) ** 2
-            if h2 >= 0:
+            if cross_x and h2 >= 0:
                 h = math.sqrt(h2)
                 cand += [(line, cy + h), (line, cy - h)]
             h2 = r * r - (line - cy) ** 2
-            if h2 >= 0:
+            if cross_y and h2 >= 0:
                 h = math.sqrt(h2)
                 cand += [(cx + h, line), (cx - h, line)]
         if length > 0:  # flat sides (s + t d, t in [0, 1]) crossing the lines
-            nx, ny = -dy / length * r, dx / length * r
             for sx, sy in ((x0 + nx, y0 + ny), (x0 - nx, y0 - ny)):
-                if dx:
+                if dx and cross_x:
                     t = min(max((line - sx) / dx, 0.0), 1.0)
                     cand.append((sx + t * dx, sy + t * dy))
-                if dy:
+                if dy and cross_y:
                     t = min(max((line - sy) / dy, 0.0), 1.0)
                     cand.append((sx + t * dx, sy + t * dy))
     eps = 1e-9 * max(size, 1.0)
@@ -70,4 +80,4 @@ def clipped_capsule_points(p0, p1, radius: float, size: float) -> np.ndarray:
         t = min(max(((px - x0) * dx + (py - y0) * dy) / dd, 0.0), 1.0) if dd > 0 else 0.0
         if (px - x0 - t * dx) ** 2 + (py - y0 - t * dy) ** 2 <= (r + eps) ** 2:
             keep.append((min(max(px, 0.0), size), min(max(py, 0.0), size)))
-    return np.array(keep) if keep else np.empty((0, 2))
+    return keep

@@ -130,7 +130,16 @@ def finger_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
     A finger's top-view outline is the union of its capsules (pad and shaft), each a segment
     widened by its radius; the box is that outline clipped to the image, computed exactly.
     """
-    s = px_per_m(cfg)
-    caps = [[(world_to_pixel(a[:2], cfg), world_to_pixel(b[:2], cfg), r * s) for a, b, r in f]
-            for f in finger_capsules(model, data, ids)]
-    return boxes_from_outlines(caps, cfg.image_size)
+    s, half = px_per_m(cfg), cfg.image_size / 2
+    geoms = [g for f in FINGERS for g in (ids.pad[f], ids.shaft[f])]  # (finger, capsule) order
+    # the same ends as `finger_capsules`, in plain floats (a handful of numbers per call)
+    pos = data.geom_xpos[geoms].tolist()
+    zax = data.geom_xmat[geoms][:, [2, 5]].tolist()
+    size = model.geom_size[geoms].tolist()
+    caps = []
+    for (x, y, _), (ax, ay), (r, half_len, _) in zip(pos, zax, size, strict=True):
+        ax, ay = ax * half_len, ay * half_len
+        ends = ((x + ax) * s + half, -(y + ay) * s + half), ((x - ax) * s + half,
+                                                             -(y - ay) * s + half)
+        caps.append((*ends, r * s))
+    return boxes_from_outlines([caps[:2], caps[2:]], cfg.image_size)
