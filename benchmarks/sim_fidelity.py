@@ -39,11 +39,12 @@ from vistac.dataset import unit_labels
 from vistac_sim.effects import build_pipeline
 from vistac_sim.effects.presets import resolve
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.configuration import ConfigStreams, object_index
+from vistac_sim.generate.configuration import ConfigStreams
 from vistac_sim.generate.scenes import ObjectScene, draw_grasp, solve
 from vistac_sim.objects.decomposition import convex_decomposition, default_cache_dir
 from vistac_sim.objects.library import SceneObject, build_object, procedural_library
 from vistac_sim.objects.outlines import CONCAVE_FAMILIES
+from vistac_sim.objects.specs import object_index
 from vistac_sim.physics.checks import RejectedSample
 from vistac_sim.render.png import encode_png
 from vistac_sim.render.topview import finger_boxes

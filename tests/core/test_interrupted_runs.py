@@ -24,14 +24,14 @@ def _enospc(*args, **kwargs):
 
 
 def test_a_truncated_shard_is_made_again_on_resume(env, monkeypatch, capsys):
-    import vistac_sim.generate.run as run_mod
+    import vistac_sim.generate.worker as run_mod
 
     root = env["root"] / "truncated"
     args = ["--n", "4", "--image-size", "32", "--n-objects", "1", "--repeats", "1",
             "--chunk-size", "1", "--workers", "1", "--no-progress"]
     assert main(["generate", "--out", str(root / "ref"), *args]) == 0
     out = root / "d"
-    original, done = run_mod._run_chunk, []
+    original, done = run_mod.run_chunk, []
 
     def stops_after_two(chunk):
         if len(done) == 2:
@@ -39,9 +39,9 @@ def test_a_truncated_shard_is_made_again_on_resume(env, monkeypatch, capsys):
         done.append(chunk)
         return original(chunk)
 
-    monkeypatch.setattr(run_mod, "_run_chunk", stops_after_two)
+    monkeypatch.setattr(run_mod, "run_chunk", stops_after_two)
     assert main(["generate", "--out", str(out), *args]) == 130
-    monkeypatch.setattr(run_mod, "_run_chunk", original)
+    monkeypatch.setattr(run_mod, "run_chunk", original)
     shards = sorted((out / ".partial" / "shards").glob("*.configs.parquet"))
     assert len(shards) == 2
     shards[0].write_bytes(shards[0].read_bytes()[:40])  # a damaged shard

@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from vistac.cli import main
-from vistac_sim.generate import run as generate_mod
+from vistac_sim.generate import worker as generate_mod
 from vistac_sim.recording.layout import HEADER
 
 ARGS = ["--n", "6", "--seed", "3", "--workers", "1", "--no-progress", "--n-objects", "3",
@@ -72,7 +72,7 @@ def test_study_preprocessing_recovers_each_press_of_presses_parquet(lab_run):
 
 def test_interrupted_run_resumes_to_identical_recordings(lab_run, tmp_path, monkeypatch):
     out = tmp_path / "d"
-    original, done = generate_mod._run_chunk, []
+    original, done = generate_mod.run_chunk, []
 
     def dies_on_second_chunk(chunk):
         if done:
@@ -80,10 +80,10 @@ def test_interrupted_run_resumes_to_identical_recordings(lab_run, tmp_path, monk
         done.append(chunk)
         return original(chunk)
 
-    monkeypatch.setattr(generate_mod, "_run_chunk", dies_on_second_chunk)
+    monkeypatch.setattr(generate_mod, "run_chunk", dies_on_second_chunk)
     assert main(["generate", "--out", str(out), *ARGS]) == 130
     assert not (out / "manifest.json").exists()
-    monkeypatch.setattr(generate_mod, "_run_chunk", original)
+    monkeypatch.setattr(generate_mod, "run_chunk", original)
     assert main(["generate", "--out", str(out), "--resume", *ARGS]) == 0
     a = sorted((lab_run / "recordings").iterdir())
     b = sorted((out / "recordings").iterdir())

@@ -69,8 +69,9 @@ def unit_labels(forces: np.ndarray) -> np.ndarray:
 def press_row(config_id: int, repeat: int, force: np.ndarray, label: np.ndarray) -> dict:
     """One `presses.parquet` row: ids, the (2, 3) force and the (2, 2) unit labels per finger."""
     row = {"config_id": config_id, "repeat": repeat}
+    force, label = np.asarray(force, float).tolist(), np.asarray(label, float).tolist()
     for k, f in enumerate(FINGERS):
-        row |= dict(zip(force_columns(f), map(float, force[k]), strict=True))
+        row |= dict(zip(force_columns(f), force[k], strict=True))
     for k, f in enumerate(FINGERS):
-        row |= dict(zip(label_columns(f), map(float, label[k]), strict=True))
+        row |= dict(zip(label_columns(f), label[k], strict=True))
     return row

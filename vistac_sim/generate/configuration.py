@@ -19,6 +19,7 @@ from vistac_sim.effects.registry import Pipeline
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.scenes import NoValidGrasp, ObjectScene, SceneCache, draw_grasp
 from vistac_sim.objects.library import SceneObject
+from vistac_sim.objects.specs import object_index
 from vistac_sim.physics.checks import RejectedSample
 from vistac_sim.physics.press import PressResult
 from vistac_sim.recording.layout import recording_csv
@@ -58,12 +59,6 @@ class ConfigStreams:
         if name not in self._made:
             self._made[name] = np.random.default_rng([*self.key, STREAMS.index(name), 0x5EED])
         return self._made[name]
-
-
-def object_index(seed: int, config_id: int, n_objects: int) -> int:
-    """Which object of the library configuration `config_id` uses."""
-    return int(np.random.SeedSequence([seed, config_id, 7]).generate_state(1, np.uint64)[0]
-               % n_objects)
 
 
 def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: GenerateCfg,

@@ -1,7 +1,9 @@
 """Per-object bookkeeping of a run: screening objects before it, the summary after it.
 
-`screen_objects` builds each object once and draws grasps (seeded by the run's seed and the
-object's place in the library) until one passes every check. An object that fails to build, or
+`screen_objects` keeps the objects whose screening passed: each object is built once, in a
+worker, and grasps are drawn (seeded by the run's seed and the object's place in the library)
+until one passes every check (`vistac_sim.generate.worker.screen_object`). An object that fails
+to build, or
 gives no valid grasp in `grasp.max_redraws` draws, is skipped with its reason (an error with
 `--strict`); the run's configurations are spread over the objects that remain, so the count asked
 for is still delivered. `object_summary` lists per object the configurations and presses accepted
@@ -12,21 +14,28 @@ from __future__ import annotations
 
 import json
 from collections import Counter
+from collections.abc import Iterable
 
-import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
 from vistac.errors import UserError
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import NoValidGrasp, ObjectScene, draw_grasp
-from vistac_sim.objects.decomposition import default_cache_dir
-from vistac_sim.objects.library import ObjectSpec, build_object
+from vistac_sim.objects.specs import ObjectSpec
 
 
-def screen_objects(specs: list[ObjectSpec], cfg: GenerateCfg, progress: bool = False
+def screen_objects(specs: list[ObjectSpec], cfg: GenerateCfg,
+                   outcomes: Iterable[tuple[str | None, dict[str, int], list[str]]],
+                   progress: bool = False
                    ) -> tuple[list[ObjectSpec], list[dict], dict[str, list[str]]]:
     """Keep the objects that give a valid grasp; the others are returned with their reasons.
+
+    Args:
+        specs: the object library.
+        cfg: the run's config (`objects.strict`).
+        outcomes: per spec, in order, what `vistac_sim.generate.worker.screen_object` found:
+            None or the reason to skip it, its rejected draws, the repairs made to its mesh.
+        progress: show a progress bar.
 
     Returns:
         The kept specs, the skipped objects (`object_id`, `path`, `reason`, `rejections`) and
@@ -37,9 +46,9 @@ def screen_objects(specs: list[ObjectSpec], cfg: GenerateCfg, progress: bool = F
             when no object remains.
     """
     kept, skipped, repairs = [], [], {}
-    for k, spec in enumerate(tqdm(specs, desc="check objects", unit="obj", disable=not progress)):
-        rng = np.random.default_rng([cfg.seed, k, 0x5C4EE7])
-        reason, rejections, notes = _screen_one(spec, cfg, rng)
+    bar = tqdm(total=len(specs), desc="check objects", unit="obj", disable=not progress)
+    for spec, (reason, rejections, notes) in zip(specs, outcomes, strict=True):
+        bar.update()
         if notes:
             repairs[spec.object_id] = notes
         if reason is None:
@@ -50,31 +59,11 @@ def screen_objects(specs: list[ObjectSpec], cfg: GenerateCfg, progress: bool = F
             raise UserError(f"{name}: {reason} (--strict)")
         skipped.append({"object_id": spec.object_id, "path": spec.path, "reason": reason,
                         "rejections": rejections})
+    bar.close()
     if not kept:
         raise UserError("no object gave a valid grasp: " + "; ".join(
             f"{s['object_id']}: {s['reason']}" for s in skipped))
     return kept, skipped, repairs
-
-
-def _screen_one(spec: ObjectSpec, cfg: GenerateCfg, rng: np.random.Generator
-                ) -> tuple[str | None, dict[str, int], list[str]]:
-    try:
-        obj = build_object(spec, cfg.hand.height, cfg.objects.min_wall, default_cache_dir(),
-                           cfg.objects.min_height)
-        scene = ObjectScene(obj, cfg, render=False)
-    except UserError as exc:
-        return str(exc), {}, []
-    except Exception as exc:  # one object must never abort a run
-        return f"cannot build the object ({type(exc).__name__}: {exc})", {}, []
-    notes = list(obj.mesh.metadata.get("repairs", []))
-    try:
-        draw_grasp(scene, rng, cfg)
-    except NoValidGrasp as exc:
-        counts = dict(sorted(exc.redraws.items()))
-        return f"no valid grasp in {sum(counts.values())} draws", counts, notes
-    finally:
-        scene.close()
-    return None, {}, notes
 
 
 def object_summary(configs: pd.DataFrame, presses: pd.DataFrame, objects: list[dict],

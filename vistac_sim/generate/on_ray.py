@@ -39,12 +39,12 @@ from vistac.errors import UserError
 from vistac_sim.effects import build_pipeline
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.configuration import Configuration
-from vistac_sim.generate.run import Chunk, commit_chunk, make_chunk
+from vistac_sim.generate.run import VERSIONED, Chunk
 from vistac_sim.generate.scenes import SceneCache
+from vistac_sim.generate.worker import commit_chunk, make_chunk
 from vistac_sim.objects.decomposition import default_cache_dir
-from vistac_sim.objects.library import ObjectSpec
+from vistac_sim.objects.specs import ObjectSpec
 
-VERSIONED = ("mujoco", "numpy", "trimesh")  # what decides the bytes of a chunk
 TASK_CPUS = 1
 TASK_RETRIES = 3
 

@@ -1,10 +1,13 @@
 """`vistac generate`: many configurations, in worker processes, into a dataset directory.
 
-Work is cut into chunks of configurations that share one object (so a worker builds each object's
-scene and renderer once). Workers take tasks of consecutive chunks of the same object
-(`plan_tasks`), so each object's scene is built by about one worker, not by all. A chunk is a
-pure function of (seed, config ids, config), so the dataset is identical whatever the number of
-workers, and a resumed run redoes exactly the chunks that had not committed their shard.
+This module is the driver: it plans and bookkeeps, and imports nothing that builds a scene (no
+meshes, MuJoCo or renderer; those live in `vistac_sim.generate.worker`, imported by the workers).
+Objects are screened in the workers, then the work is cut into chunks of configurations that
+share one object (so a worker builds each object's scene and renderer once). Workers take tasks
+of consecutive chunks of the same object (`plan_tasks`), so each object's scene is built by about
+one worker, not by all. A chunk is a pure function of (seed, config ids, config), so the dataset
+is identical whatever the number of workers, and a resumed run redoes exactly the chunks that had
+not committed their shard.
 """
 
 from __future__ import annotations
@@ -12,25 +15,24 @@ from __future__ import annotations
 import multiprocessing as mp
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
 from vistac.dataset import files
-from vistac.dataset.schema import IMAGES
 from vistac.engine import EngineCfg, preflight
 from vistac_sim.effects import build_pipeline
-from vistac_sim.effects.registry import Pipeline
 from vistac_sim.generate import shards
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.configuration import Configuration, make_configuration, object_index
 from vistac_sim.generate.objects_report import screen_objects
-from vistac_sim.generate.scenes import SceneCache
-from vistac_sim.objects.decomposition import default_cache_dir
-from vistac_sim.objects.library import ObjectSpec, mesh_library, procedural_library
-from vistac_sim.recording.layout import recording_name
+from vistac_sim.objects.specs import ObjectSpec, object_index, procedural_library
+
+WORKER_MODULE = "vistac_sim.generate.worker"
+VERSIONED = ("mujoco", "numpy", "trimesh")  # what decides the bytes of a dataset
 
 
 @dataclass(frozen=True)
@@ -72,85 +74,95 @@ def plan_tasks(todo: list[Chunk], workers: int, per_worker: int = 8) -> list[lis
 
 def object_specs(cfg: GenerateCfg, seed: int) -> tuple[list[ObjectSpec], list[dict]]:
     """The object library of a run (procedural, or user meshes) and the skipped meshes."""
-    if cfg.objects.paths:
+    if cfg.objects.paths:  # meshes are checked and decomposed here, once (cached for workers)
+        from vistac_sim.objects.decomposition import default_cache_dir
+        from vistac_sim.objects.library import mesh_library
+
         return mesh_library(cfg.objects, seed, cfg.hand.height, default_cache_dir())
     return procedural_library(cfg.objects, seed), []
 
 
-# ------------------------------------------------------------------------- make, then commit
-def make_chunk(chunk: Chunk, cfg: GenerateCfg, scenes: SceneCache,
-               pipeline: Pipeline) -> list[Configuration]:
-    """Every configuration of a chunk, in memory: pure and deterministic given `cfg.seed`."""
-    return [make_configuration(cid, cfg.seed, scenes, cfg, pipeline) for cid in chunk.config_ids]
-
-
-def commit_chunk(out: Path, chunk_index: int, made: list[Configuration]) -> int:
-    """Write a made chunk's images (and recordings), then commit its shard; returns its size."""
-    if any(c.recording is not None for c in made):
-        (out / "recordings").mkdir(exist_ok=True)
-    for c in made:
-        _write_image(out / IMAGES / c.row["image"], c.png)
-        if c.recording is not None:
-            cid = c.row["config_id"]
-            files.atomic_write_bytes(out / "recordings" / recording_name(cid), c.recording)
-    cpath, ppath = shards.shard_paths(out, chunk_index)
-    files.write_table(ppath, [p for c in made for p in c.presses])
-    files.write_table(cpath, [c.row for c in made])  # written last: commits the chunk
-    return len(made)
-
-
-# ------------------------------------------------------------------------------ worker process
-_WORKER: dict = {}
-
-
-def _init_worker(cfg: GenerateCfg, specs: list[ObjectSpec], out: str) -> None:
-    # Tasks hold one object each, so a few cached scenes suffice and memory does not grow with
-    # the size of the object library.
-    _WORKER.update(cfg=cfg, out=Path(out), pipeline=build_pipeline(cfg.effects),
-                   scenes=SceneCache(specs, cfg, size=4, cache_dir=default_cache_dir()))
-
-
-def _write_image(path: Path, data: bytes) -> None:
-    """Write one image in place (no temporary file and rename): an image only counts once its
-    chunk's shard is committed, after this write returned, and a resumed run rewrites the images
-    of every uncommitted chunk, so a torn image can never stay in a dataset."""
-    with open(path, "wb") as fh:
-        fh.write(data)
-
-
-def _run_task(task: list[Chunk]) -> int:
-    return sum(map(_run_chunk, task))
-
-
-def _run_chunk(chunk: Chunk) -> int:
-    """Make a chunk in this worker and commit it to the (local) output folder."""
-    made = make_chunk(chunk, _WORKER["cfg"], _WORKER["scenes"], _WORKER["pipeline"])
-    return commit_chunk(_WORKER["out"], chunk.index, made)
-
-
+# ------------------------------------------------------------------------------ worker processes
 def worker_context() -> mp.context.BaseContext:
     """Processes for workers: forked from a fork server that imported the simulator once.
 
-    The server starts fresh (no GL context, no threads of this process) and imports this module
-    and what it needs; each worker is a fork of it, so workers do not import MuJoCo, trimesh,
-    pandas and SciPy again (about a second of CPU each), and each makes its own GL context.
+    The server starts fresh (no GL context, no threads of this process) and imports the worker
+    module and what it needs; each worker is a fork of it, so workers do not import MuJoCo,
+    trimesh, pandas and SciPy again (about a second of CPU each), and each makes its own GL
+    context.
     """
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload([__name__])
+    ctx.set_forkserver_preload([WORKER_MODULE])
     return ctx
+
+
+@contextmanager
+def _pool(workers: int, *initargs):
+    """A pool of `workers` forked workers (initialised with `initargs` for chunks), or None for
+    one worker: the work then runs in this process."""
+    if workers == 1:
+        yield None
+        return
+    init = (in_worker("init_worker"), initargs) if initargs else (None, ())
+    with worker_context().Pool(workers, initializer=init[0], initargs=init[1]) as pool:
+        yield pool
+
+
+def stop_fork_server() -> None:
+    """Stop this process's fork server, if one runs, and wait for it: a run leaves no process
+    behind, and its workers' CPU time counts among this process's children (`getrusage`).
+
+    `ForkServer._stop` is the standard library's own way (private, there since Python 3.8); it
+    does nothing when no server runs.
+    """
+    from multiprocessing import forkserver
+
+    stop = getattr(forkserver._forkserver, "_stop", None)
+    if stop is not None:
+        stop()
+
+
+def in_worker(name: str) -> partial:
+    """`vistac_sim.generate.worker.<name>`, as a picklable callable that does not import the
+    worker module here (the workers have it preloaded)."""
+    return partial(_call_worker, name)
+
+
+def _call_worker(name: str, *args):
+    from vistac_sim.generate import worker
+
+    return getattr(worker, name)(*args)
+
+
+def _screen(specs: list[ObjectSpec], cfg: GenerateCfg, workers: int, progress: bool):
+    """Screen the objects in worker processes (this process imports no simulator); returns
+    `screen_objects`' result and the versions of what the workers run (for the manifest)."""
+    jobs = [(k, spec, cfg) for k, spec in enumerate(specs)]
+    with _pool(min(workers, len(specs))) as pool:
+        outcomes = (pool.imap if pool else map)(in_worker("screen_object"), jobs)
+        screened = screen_objects(specs, cfg, outcomes, progress)
+        versions = (pool.apply if pool else _call)(files.versions, VERSIONED)
+    return (*screened, versions)
+
+
+def _call(fn, args):
+    return fn(*args)
 
 
 def _run_local(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[Chunk],
                workers: int) -> Iterator[int]:
     """Make and commit the `todo` chunks in this process or a pool; yields chunk sizes."""
     if workers == 1 or len(todo) <= 1:
-        _init_worker(cfg, specs, str(out))
-        yield from map(_run_chunk, todo)
-        _WORKER["scenes"].close()
+        from vistac_sim.generate import worker
+
+        worker.init_worker(cfg, specs, str(out))
+        try:
+            yield from (worker.run_chunk(c) for c in todo)
+        finally:
+            worker.close_worker()
     else:
-        ctx = worker_context()
-        with ctx.Pool(workers, initializer=_init_worker, initargs=(cfg, specs, str(out))) as pool:
-            yield from pool.imap_unordered(_run_task, plan_tasks(todo, workers))
+        with _pool(workers, cfg, specs, str(out)) as pool:
+            yield from pool.imap_unordered(in_worker("run_task"), plan_tasks(todo, workers))
 
 
 # --------------------------------------------------------------------------------- the run
@@ -171,13 +183,19 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
         UserError: bad options, bad meshes or objects without a valid grasp (strict), no
             usable object, or an `out` that cannot be used.
     """
+    try:
+        return _generate(cfg, Path(out), workers, resume, progress, engine or EngineCfg())
+    finally:
+        stop_fork_server()
+
+
+def _generate(cfg: GenerateCfg, out: Path, workers: int, resume: bool, progress: bool,
+              engine: EngineCfg) -> dict:
     t0 = time.perf_counter()
-    out = Path(out)
-    engine = engine or EngineCfg()
     preflight(engine)
     workers = min(workers or mp.cpu_count(), mp.cpu_count())
     specs, skipped = object_specs(cfg, cfg.seed)
-    specs, unusable, repairs = screen_objects(specs, cfg, progress)
+    specs, unusable, repairs, versions = _screen(specs, cfg, workers, progress)
     run_state = {"config": cfg.to_dict(), "objects": [s.__dict__ for s in specs]}
     done = shards.start_run(out, run_state, resume)
     chunks = plan_chunks(cfg.n, cfg.seed, len(specs), cfg.chunk_size)
@@ -198,7 +216,7 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
         "generator": "vistac generate",
         "config": cfg.to_dict(),
         "seed": cfg.seed,
-        "versions": files.versions("mujoco", "numpy", "trimesh"),
+        "versions": versions,
         "effects": build_pipeline(cfg.effects).describe(),
         "objects": [s.__dict__ for s in specs],
         "skipped_meshes": skipped,

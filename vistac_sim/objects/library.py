@@ -27,18 +27,10 @@ from vistac_sim.objects import outlines
 from vistac_sim.objects.config import ObjectsCfg
 from vistac_sim.objects.decomposition import convex_decomposition, pieces_section
 from vistac_sim.objects.meshes import find_mesh_files, load_mesh, scale_to_footprint
+from vistac_sim.objects.specs import ObjectSpec, procedural_library
 
-
-@dataclass(frozen=True)
-class ObjectSpec:
-    """What to build: a procedural family drawn from `seed`, or a mesh file."""
-
-    object_id: str
-    family: str  # a procedural family name, or "mesh"
-    seed: int
-    footprint: float  # m, longest side of the top-view outline
-    height: float  # m, extrusion height (procedural only)
-    path: str = ""  # mesh file (family "mesh")
+__all__ = ["ObjectSpec", "SceneObject", "build_object", "extruded_object", "mesh_library",
+           "press_height", "procedural_library"]
 
 
 @dataclass
@@ -56,25 +48,6 @@ class SceneObject:
     @property
     def object_id(self) -> str:
         return self.spec.object_id
-
-
-def procedural_library(cfg: ObjectsCfg, seed: int) -> list[ObjectSpec]:
-    """The procedural object library of a run: `n_objects` specs cycling through the families."""
-    root = np.random.SeedSequence([seed, 0xB0B])
-    specs = []
-    for k, child in enumerate(root.spawn(cfg.n_objects)):
-        rng = np.random.default_rng(child)
-        fam = cfg.families[k % len(cfg.families)]
-        specs.append(
-            ObjectSpec(
-                object_id=f"{fam}_{k:03d}",
-                family=fam,
-                seed=int(rng.integers(2**31)),
-                footprint=float(rng.uniform(*cfg.footprint)),
-                height=float(rng.uniform(*cfg.height)),
-            )
-        )
-    return specs
 
 
 def press_height(object_height: float, finger_height: float, min_height: float = 0.0005,
