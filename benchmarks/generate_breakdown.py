@@ -35,7 +35,7 @@ PARTS: dict[str, list[tuple[str, str]]] = {
                                        ("session.py", "simulate_session")],
     "PNG encode": [("png.py", "encode_png")],
     "image write": [("files.py", "atomic_write_bytes"), ("pathlib.py", "write_bytes"),
-                    ("run.py", "_write_image")],
+                    ("worker.py", "_write_image")],
     "shard write (Parquet per chunk)": [("files.py", "write_table")],
     "final tables and manifest": [("shards.py", "finalize")],
     "scene close": [("scenes.py", "close")],
@@ -87,6 +87,8 @@ def profile_generate(n: int, seed: int, out: Path) -> dict[str, float]:
     from vistac_sim.effects.presets import resolve
     from vistac_sim.generate.config import GenerateCfg
     from vistac_sim.generate.run import generate
+    from vistac_sim.generate.worker import make_chunk  # noqa: F401  (imported before the clock,
+    # as generate's fork server imports it before its workers start; the bare loop's likewise)
 
     cfg = GenerateCfg(n=n, seed=seed)
     cfg.effects, cfg.recording = resolve(None, None, 0.05)  # what the benchmark's CLI run uses

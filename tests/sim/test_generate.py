@@ -60,14 +60,41 @@ def test_dataset_matches_contract(small_dataset):
     assert (spread > 0).all()
 
 
+def _children_cpu() -> float:
+    import resource
+
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def test_same_seed_same_bytes_whatever_the_workers(tmp_path):
     args = ["--n", "16", "--seed", "3", "--noise", "0.05", "--n-objects", "6", "--chunk-size", "4"]
     assert _gen(tmp_path / "w1", *args, "--workers", "1") == 0
+    cpu_before = _children_cpu()
     assert _gen(tmp_path / "w2", *args, "--workers", "2") == 0
+    # The run left no process behind (its fork server stopped and was waited for, so the
+    # workers' CPU time counts among this process's children).
+    from multiprocessing import active_children, forkserver
+
+    assert not active_children() and forkserver._forkserver._forkserver_pid is None
+    assert _children_cpu() > cpu_before
     for name in ("presses.parquet", "configs.parquet"):
         assert (tmp_path / "w1" / name).read_bytes() == (tmp_path / "w2" / name).read_bytes()
     for img in sorted((tmp_path / "w1" / "images").iterdir()):
         assert img.read_bytes() == (tmp_path / "w2" / "images" / img.name).read_bytes()
+
+
+def test_the_driver_imports_no_simulator(tmp_path):
+    """With worker processes, `vistac generate` itself plans and writes tables only: MuJoCo,
+    trimesh and SciPy are imported by the workers' fork server, not by the `vistac` process."""
+    code = ("import sys; from vistac.cli import main; "
+            f"rc = main(['generate', '--out', {str(tmp_path / 'd')!r}, '--n', '4', '--workers', "
+            "'2', '--image-size', '32', '--n-objects', '2', '--repeats', '1', '--chunk-size', "
+            "'2', '--no-progress']); "
+            "print(rc, sorted(m for m in ('mujoco', 'trimesh', 'scipy') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True)
+    assert done.stdout.strip().splitlines()[-1] == "0 []", done.stdout + done.stderr
 
 
 def test_kill_9_then_resume_equals_uninterrupted(tmp_path):
