@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import shapely
-from shapely.geometry import LineString, Polygon
+from shapely.geometry import Polygon
 from shapely.ops import unary_union
 
 from vistac.dataset import FINGERS
@@ -99,20 +99,15 @@ class OutlineSampler:
         return np.stack([c * inward[:, 0] - s * inward[:, 1], s * inward[:, 0] + c * inward[:, 1]],
                         axis=1)
 
-    def finger_axis(self, start: np.ndarray, approach: np.ndarray) -> LineString:
-        """Top-view axis of a whole finger (tip + shaft) with its front cap centre at `start`.
+    def finger_axes(self, start: np.ndarray, approach: np.ndarray) -> np.ndarray:
+        """Top-view axes (LineStrings) of both whole fingers (tip + shaft), each with its front
+        cap centre at `start` (2, 2) and pointing along `approach` (2, 2).
 
-        The finger's footprint is this segment widened by the tip radius (the widest part).
+        A finger's footprint is its segment widened by the tip radius (the widest part).
         """
         h = self.cfg.hand
         back = start - approach * (2 * h.tip_half_length + h.shaft_length + h.shaft_radius)
-        return LineString([start, back])
-
-    def _inside(self, axis: LineString) -> bool:
-        return any(shapely.dwithin(geom, axis, width) for geom, width in self.keep_out)
-
-    def _overlap(self, a: LineString, b: LineString) -> bool:
-        return bool(shapely.dwithin(a, b, 2 * self.cfg.hand.tip_radius))
+        return shapely.linestrings(np.stack([start, back], axis=1))
 
     def check(self, local: Grasp) -> None:
         """Check a grasp given in the object frame (yaw 0, at the origin).
@@ -122,12 +117,14 @@ class OutlineSampler:
                 "fingers_overlap".
         """
         h = self.cfg.hand
-        start = local.start(h.tip_radius, h.standoff)
-        axes = [self.finger_axis(start[k], local.approach[k]) for k in range(2)]
-        for name, axis in zip(FINGERS, axes, strict=True):
-            if self._inside(axis):
+        axes = self.finger_axes(local.start(h.tip_radius, h.standoff), local.approach)
+        inside = np.zeros(2, bool)
+        for geom, width in self.keep_out:
+            inside |= shapely.dwithin(geom, axes, width)
+        for name, hit in zip(FINGERS, inside, strict=True):
+            if hit:
                 raise RejectedSample("unreachable", f"{name} finger would start inside the object")
-        if self._overlap(*axes):
+        if shapely.dwithin(axes[0], axes[1], 2 * h.tip_radius):
             raise RejectedSample("fingers_overlap", "thumb and index would overlap")
 
     def far_crossing(self, point: np.ndarray,
