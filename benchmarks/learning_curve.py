@@ -10,7 +10,8 @@ training-set size (nested seeded subsets of the train split, `--train-fraction`)
   ``--study-protocol-max-n`` configurations: on 2 CPU cores its batches of 5 make a larger run
   take hours, and it stays at the mean predictor at these budgets,
 
-and scores each on the whole test split (held-out objects). Memory stays flat as the training
+and scores each on the whole test split (held-out objects), beside two references that need no
+training: the training split's mean label and the geometric baseline. Memory stays flat as the training
 set grows: images are decoded per batch and nothing per rotation is stored; the peak resident
 memory of each run is recorded.
 
@@ -34,28 +35,44 @@ import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from learnbench import ensure_dataset, fmt, machine, run_entry, save  # noqa: E402
+from learnbench import (  # noqa: E402
+    baseline_entry,
+    ensure_dataset,
+    fmt,
+    machine,
+    mean_entry,
+    run_entry,
+    save,
+)
+from matplotlib.ticker import ScalarFormatter  # noqa: E402
 
 from vistac.dataset import open_dataset  # noqa: E402
 from vistac_learn.train.config import protocol_cfg  # noqa: E402
 
 
-def plot(rows: list[dict], path: Path) -> None:
-    """Accuracy and training time against training configurations (log x)."""
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
-    for name in dict.fromkeys(r["recipe"] for r in rows):
+def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
+    """Accuracy and training time against training configurations (log x), with the reference
+    predictors (no training) as horizontal lines."""
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4.2))
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for colour, name in zip(colours, dict.fromkeys(r["recipe"] for r in rows), strict=False):
         rs = sorted((r for r in rows if r["recipe"] == name), key=lambda r: r["n_train"])
         x = [r["n_train"] for r in rs]
-        a.plot(x, [r["index_deg"] for r in rs], "o-", label=f"{name} (index)")
+        a.plot(x, [r["index_deg"] for r in rs], "o-", color=colour, label=f"{name}: index")
         if rs[0]["thumb_deg"] is not None:
-            a.plot(x, [r["thumb_deg"] for r in rs], "s--", label=f"{name} (thumb)")
-        b.plot(x, [r["train_s"] / 60 for r in rs], "o-", label=name)
+            a.plot(x, [r["thumb_deg"] for r in rs], "s--", color=colour, label=f"{name}: thumb")
+        b.plot(x, [r["train_s"] / 60 for r in rs], "o-", color=colour, label=name)
+    for ref, style in zip(refs, (":", "-."), strict=False):
+        deg = ref["metrics"]["index"]["angle_to_mean_median_deg"]
+        a.axhline(deg, color="grey", ls=style, lw=1, label=f"{ref['label']}: index {deg:.1f}")
     for ax in (a, b):
         ax.set_xscale("log")
         ax.set_xlabel("training configurations")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=7)
     a.set_yscale("log")
+    a.yaxis.set_major_formatter(ScalarFormatter())
+    a.yaxis.set_minor_formatter(ScalarFormatter())
     a.set_ylabel("median angle to cone mean, test (deg)")
     b.set_ylabel("training time (min, 2 CPU cores)")
     fig.tight_layout()
@@ -63,7 +80,7 @@ def plot(rows: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def report(rows: list[dict], out: Path, data: Path) -> None:
+def report(rows: list[dict], refs: list[dict], out: Path, data: Path) -> None:
     """Table, JSON and plot of the runs so far."""
     peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     head = ["recipe", "train configs", "index °", "thumb °", "index % in cone",
@@ -77,9 +94,14 @@ def report(rows: list[dict], out: Path, data: Path) -> None:
     md = "\n".join(lines) + (f"\n\nPeak resident memory of the whole benchmark: {peak_mib:.0f} "
                              "MiB (the runs of both recipes go in size order: flat means memory "
                              "does not grow with the training set).")
-    plot(rows, out / "learning_curve.png")
+    for ref in refs:
+        m = ref["metrics"]
+        md += (f"\n\n{ref['label']} on the same test split: index "
+               f"{fmt(m['index']['angle_to_mean_median_deg'])} deg, thumb "
+               f"{fmt(m['thumb']['angle_to_mean_median_deg'])} deg.")
+    plot(rows, refs, out / "learning_curve.png")
     save(out, "learning_curve", {"dataset": str(data), "machine": machine(), "rows": rows,
-                                 "peak_rss_mib": peak_mib}, md)
+                                 "references": refs, "peak_rss_mib": peak_mib}, md)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -115,6 +137,7 @@ def main(argv: list[str] | None = None) -> int:
               {"model": args.study_model, "rotations": "random",
                "n_rotations": args.study_rotations})
              for n in sizes if n <= args.study_protocol_max_n]
+    refs = [mean_entry(data), baseline_entry(data, args.out)]
     rows = []
     for n, name, protocol, kw in plan:
         frac = n / n_train
@@ -133,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
             "train_s": e["train_s"], "epochs": e["epochs"], "best_epoch": e["best_epoch"],
             "macs": e["macs"],
             "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024})
-        report(rows, args.out, data)  # after every run: a stopped benchmark keeps its points
+        report(rows, refs, args.out, data)  # after every run: a stopped benchmark keeps its points
     return 0
 
 
