@@ -11,9 +11,9 @@ training-set size (nested seeded subsets of the train split, `--train-fraction`)
   take hours, and it stays at the mean predictor at these budgets,
 
 and scores each on the whole test split (held-out objects), beside two references that need no
-training: the training split's mean label and the geometric baseline. Memory stays flat as the training
-set grows: images are decoded per batch and nothing per rotation is stored; the peak resident
-memory of each run is recorded.
+training: the training split's mean label and the geometric baseline. Memory stays flat as the
+training set grows: images are decoded per batch and nothing per rotation is stored; the
+process's peak resident memory after each run is recorded.
 
 Writes ``learning_curve.md`` / ``.json`` / ``.png`` into ``--out``; reruns resume.
 
@@ -84,16 +84,17 @@ def report(rows: list[dict], refs: list[dict], out: Path, data: Path) -> None:
     """Table, JSON and plot of the runs so far."""
     peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     head = ["recipe", "train configs", "index °", "thumb °", "index % in cone",
-            "index % correct y", "train min", "best epoch", "peak RSS so far (MiB)"]
+            "index % correct y", "train min", "best epoch"]
     lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
     for r in rows:
         lines.append("| " + " | ".join([
             r["recipe"], str(r["n_train"]), fmt(r["index_deg"]), fmt(r["thumb_deg"]),
             fmt(r["index_in_cone"]), fmt(r["index_correct_y"]), fmt(r["train_s"] / 60),
-            f"{r['best_epoch']}/{r['epochs']}", f"{r['peak_rss_mib']:.0f}"]) + " |")
-    md = "\n".join(lines) + (f"\n\nPeak resident memory of the whole benchmark: {peak_mib:.0f} "
-                             "MiB (the runs of both recipes go in size order: flat means memory "
-                             "does not grow with the training set).")
+            f"{r['best_epoch']}/{r['epochs']}"]) + " |")
+    md = "\n".join(lines) + (
+        f"\n\nPeak resident memory of this benchmark process: {peak_mib:.0f} MiB (each run's "
+        "`peak_rss_mib` in the JSON is this process's peak after it; runs a resumed report did "
+        "not train itself add nothing).")
     for ref in refs:
         m = ref["metrics"]
         md += (f"\n\n{ref['label']} on the same test split: index "
