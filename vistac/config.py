@@ -56,7 +56,7 @@ class ConfigError(UserError):
 def param(default: Any = dataclasses.MISSING, *, help: str = "", ge: float | None = None,
           gt: float | None = None, le: float | None = None, lt: float | None = None,
           choices: Iterable[Any] | None = None, why: str = "", flag: str | None = None,
-          metavar: str | tuple[str, ...] | None = None,
+          metavar: str | tuple[str, ...] | None = None, distinct: str = "",
           default_factory: Any = dataclasses.MISSING) -> Any:
     """A config field: default, help and allowed values, declared once.
 
@@ -68,13 +68,16 @@ def param(default: Any = dataclasses.MISSING, *, help: str = "", ge: float | Non
         why: Said after a violated bound or choice, e.g. "the curve must stay monotone".
         flag: The CLI option, when it is not ``--`` + the field name with dashes.
         metavar: argparse's metavar of the option.
+        distinct: For a tuple whose elements must be at least one and all different: the noun
+            of one element, for the message (e.g. "level").
         default_factory: Instead of `default`, for a nested config.
 
     Returns:
         A `dataclasses.field` carrying the declaration in its metadata.
     """
     meta = {"help": help, "ge": ge, "gt": gt, "le": le, "lt": lt, "why": why, "flag": flag,
-            "metavar": metavar, "choices": tuple(choices) if choices is not None else None}
+            "metavar": metavar, "choices": tuple(choices) if choices is not None else None,
+            "distinct": distinct}
     return dataclasses.field(default=default, default_factory=default_factory, metadata=meta)
 
 
@@ -125,6 +128,11 @@ def check_value(value: Any, hint: Any, meta: Mapping[str, Any] | None = None) ->
         items = args[:1] * len(value) if args[1:] == (Ellipsis,) else args
         if len(items) != len(value):
             raise ValueError(f"expected {describe(hint)}, got {value!r}")
+        noun = meta.get("distinct")
+        if noun and not value:
+            raise ValueError(f"give at least one {noun}")
+        if noun and len(set(value)) != len(value):
+            raise ValueError(f"a {noun} appears twice ({tuple(value)})")
         return tuple(check_value(v, t, meta) for v, t in zip(value, items, strict=True))
     if origin is Literal:
         if value not in args:

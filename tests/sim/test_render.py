@@ -84,7 +84,7 @@ def test_clipped_box_matches_shapely():
     import shapely
     from shapely.geometry import LineString
 
-    from vistac_sim.render.boxes import clipped_capsule_points
+    from vistac_sim.render.boxes import clipped_points
 
     rng = np.random.default_rng(0)
     for _ in range(300):
@@ -94,7 +94,7 @@ def test_clipped_box_matches_shapely():
         r = rng.uniform(1, 40)
         ref = LineString([p0, p1]).buffer(r, quad_segs=256).intersection(
             shapely.box(0, 0, 227, 227))
-        pts = clipped_capsule_points(p0, p1, r, 227)
+        pts = np.array(clipped_points(p0, p1, r, 227)).reshape(-1, 2)
         if ref.is_empty or ref.area < 1e-6:
             assert len(pts) == 0 or np.ptp(pts, axis=0).min() < 1e-3
             continue

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from vistac.config import Config, ConfigError, param
+from vistac.config import Config, param
 from vistac.dataset import atomic_write_json, open_dataset, press_row, unit_labels, write_table
 from vistac.dataset.schema import CONFIGS, FINGERS, IMAGES, MANIFEST, PRESSES, clean_force_columns
 from vistac.errors import UserError
@@ -51,15 +51,8 @@ class LabelNoiseCfg(Config):
     out: str = param(help="experiment folder")
     levels: tuple[float, ...] = param((0.0, 0.02, 0.05, 0.1, 0.2), ge=0, le=10,
                                       help="relative std of the force noise (as --noise of "
-                                      "`vistac generate`)")
+                                      "`vistac generate`)", distinct="level")
     seeds: int = param(3, ge=1, le=1000, help="seeds per level (0 .. N-1): noise and training")
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if not self.levels:
-            raise ConfigError("levels", "give at least one level")
-        if len(set(self.levels)) != len(self.levels):
-            raise ConfigError("levels", f"a level appears twice ({self.levels})")
 
 
 def noisy_presses(configs: pd.DataFrame, presses: pd.DataFrame, level: float,

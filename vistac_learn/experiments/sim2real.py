@@ -40,17 +40,14 @@ class Sim2RealCfg(Config):
                       "and the test split every model is scored on")
     out: str = param(help="experiment folder")
     fractions: tuple[float, ...] = param((0.1, 0.33, 1.0), gt=0, le=1,
-                                         help="fractions of the real training split")
+                                         help="fractions of the real training split",
+                                         distinct="fraction")
     seeds: int = param(3, ge=1, le=1000, help="seeds per cell (0 .. N-1)")
     freeze: str = param("none", choices=FREEZE, help="fine-tuning: train everything (none) or "
                         "keep the pretrained feature layers fixed (features)")
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not self.fractions:
-            raise ConfigError("fractions", "give at least one fraction")
-        if len(set(self.fractions)) != len(self.fractions):
-            raise ConfigError("fractions", f"a fraction appears twice ({self.fractions})")
         if Path(self.sim).resolve() == Path(self.real).resolve():
             raise ConfigError("real", "must be another dataset than --sim")
 

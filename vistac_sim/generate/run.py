@@ -103,8 +103,8 @@ def _pool(workers: int, *initargs):
     if workers == 1:
         yield None
         return
-    init = (in_worker("init_worker"), initargs) if initargs else (None, ())
-    with worker_context().Pool(workers, initializer=init[0], initargs=init[1]) as pool:
+    init = in_worker("init_worker") if initargs else None
+    with worker_context().Pool(workers, initializer=init, initargs=initargs) as pool:
         yield pool
 
 
@@ -141,12 +141,8 @@ def _screen(specs: list[ObjectSpec], cfg: GenerateCfg, workers: int, progress: b
     with _pool(min(workers, len(specs))) as pool:
         outcomes = (pool.imap if pool else map)(in_worker("screen_object"), jobs)
         screened = screen_objects(specs, cfg, outcomes, progress)
-        versions = (pool.apply if pool else _call)(files.versions, VERSIONED)
+        versions = pool.apply(files.versions, VERSIONED) if pool else files.versions(*VERSIONED)
     return (*screened, versions)
-
-
-def _call(fn, args):
-    return fn(*args)
 
 
 def _run_local(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[Chunk],

@@ -82,14 +82,10 @@ class TriangleIndex:
         # normal, barycentric rows.
         self._rows = np.concatenate([self.tri[:, 0], self.face_normals,
                                      self.bary.reshape(-1, 6)], axis=1)  # (F, 12)
-        self._box: tuple[float, np.ndarray, np.ndarray] | None = None
 
     def _near(self, c: np.ndarray, radius: float) -> np.ndarray:
         """Indices of the faces whose box lies within `radius` of `c` (all if none)."""
-        if self._box is None or self._box[0] != radius:
-            self._box = (radius, self.lo - radius, self.hi + radius)
-        _, lo, hi = self._box
-        near = ((lo <= c) & (c <= hi)).all(1)
+        near = ((self.lo - radius <= c) & (c <= self.hi + radius)).all(1)
         idx = near.nonzero()[0]
         return idx if len(idx) else np.arange(len(self.tri))
 

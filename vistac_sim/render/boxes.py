@@ -19,12 +19,6 @@ def boxes_from_outlines(capsules_px, image_size: int) -> np.ndarray:
     return boxes
 
 
-def clipped_capsule_points(p0, p1, radius: float, size: float) -> np.ndarray:
-    """`clipped_points` as an (m, 2) array."""
-    pts = clipped_points(p0, p1, radius, size)
-    return np.array(pts) if pts else np.empty((0, 2))
-
-
 def clipped_points(p0, p1, radius: float, size: float) -> list[tuple[float, float]]:
     """Points of (capsule p0-p1 widened by `radius`) within [0, size]^2 whose box is exactly the
     box of that intersection (empty if they do not meet).

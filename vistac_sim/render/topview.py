@@ -109,18 +109,22 @@ def world_to_pixel(xy: np.ndarray, cfg: RenderCfg) -> np.ndarray:
     return np.stack([xy[..., 0] * s + half, -xy[..., 1] * s + half], axis=-1)
 
 
+Point = tuple[float, float, float]
+
+
 def finger_capsules(model: mujoco.MjModel, data: mujoco.MjData,
-                    ids: SceneIds) -> list[list[tuple[np.ndarray, np.ndarray, float]]]:
-    """Per finger, its capsules (pad, shaft) as (end, end, radius) in world coordinates."""
-    out = []
-    for f in FINGERS:
-        caps = []
-        for g in (ids.pad[f], ids.shaft[f]):
-            axis = data.geom_xmat[g].reshape(3, 3)[:, 2] * model.geom_size[g, 1]
-            caps.append((data.geom_xpos[g] + axis, data.geom_xpos[g] - axis,
-                         float(model.geom_size[g, 0])))
-        out.append(caps)
-    return out
+                    ids: SceneIds) -> list[list[tuple[Point, Point, float]]]:
+    """Per finger, its capsules (pad, shaft) as (end, end, radius) in world coordinates, in
+    plain floats (a handful of numbers, read once per image)."""
+    geoms = [g for f in FINGERS for g in (ids.pad[f], ids.shaft[f])]  # (finger, capsule) order
+    pos = data.geom_xpos[geoms].tolist()
+    zax = data.geom_xmat[geoms][:, 2::3].tolist()  # each capsule's axis (its z), world frame
+    size = model.geom_size[geoms].tolist()
+    caps = []
+    for (x, y, z), (ax, ay, az), (r, half_len, _) in zip(pos, zax, size, strict=True):
+        ax, ay, az = ax * half_len, ay * half_len, az * half_len
+        caps.append(((x + ax, y + ay, z + az), (x - ax, y - ay, z - az), r))
+    return [caps[:2], caps[2:]]
 
 
 def finger_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
@@ -131,15 +135,6 @@ def finger_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
     widened by its radius; the box is that outline clipped to the image, computed exactly.
     """
     s, half = px_per_m(cfg), cfg.image_size / 2
-    geoms = [g for f in FINGERS for g in (ids.pad[f], ids.shaft[f])]  # (finger, capsule) order
-    # the same ends as `finger_capsules`, in plain floats (a handful of numbers per call)
-    pos = data.geom_xpos[geoms].tolist()
-    zax = data.geom_xmat[geoms][:, [2, 5]].tolist()
-    size = model.geom_size[geoms].tolist()
-    caps = []
-    for (x, y, _), (ax, ay), (r, half_len, _) in zip(pos, zax, size, strict=True):
-        ax, ay = ax * half_len, ay * half_len
-        ends = ((x + ax) * s + half, -(y + ay) * s + half), ((x - ax) * s + half,
-                                                             -(y - ay) * s + half)
-        caps.append((*ends, r * s))
-    return boxes_from_outlines([caps[:2], caps[2:]], cfg.image_size)
+    caps = [[((a[0] * s + half, -a[1] * s + half), (b[0] * s + half, -b[1] * s + half), r * s)
+             for a, b, r in finger] for finger in finger_capsules(model, data, ids)]
+    return boxes_from_outlines(caps, cfg.image_size)
