@@ -18,7 +18,8 @@ def yaw_quat(yaw: float) -> np.ndarray:
 
 def unit(v: np.ndarray, axis: int = -1) -> np.ndarray:
     """`v` scaled to unit length along `axis` (zero vectors stay zero)."""
-    n = np.linalg.norm(v, axis=axis, keepdims=True)
+    v = np.asarray(v)
+    n = np.sqrt((v * v).sum(axis=axis, keepdims=True))  # np.linalg.norm's sum, without its checks
     return np.divide(v, n, out=np.zeros_like(v, dtype=float), where=n > 0)
 
 

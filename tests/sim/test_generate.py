@@ -84,6 +84,31 @@ def test_same_seed_same_bytes_whatever_the_workers(tmp_path):
         assert img.read_bytes() == (tmp_path / "w2" / "images" / img.name).read_bytes()
 
 
+def test_the_final_merge_holds_one_bucket_of_ids_at_a_time(tmp_path, small_dataset,
+                                                           monkeypatch):
+    """With buckets of 7 configuration ids, the 24 configurations of `small_dataset` (made in
+    chunks of 5 that interleave ids across objects) are merged into the same tables, sorted,
+    one row group per bucket, and nothing of the merge is left behind."""
+    import pyarrow.parquet as pq
+
+    from vistac_sim.generate import shards
+
+    monkeypatch.setattr(shards, "MERGE_ROWS", 7)
+    assert _gen(tmp_path / "d", "--n", "24", "--noise", "0.05", "--seed", "1", "--workers",
+                "1", "--n-objects", "8", "--chunk-size", "5") == 0
+    for name in ("configs.parquet", "presses.parquet"):
+        merged = pq.ParquetFile(tmp_path / "d" / name)
+        assert merged.metadata.num_row_groups == 4  # ids 0-6, 7-13, 14-20, 21-23
+        pd.testing.assert_frame_equal(merged.read().to_pandas(),
+                                      pd.read_parquet(small_dataset / name))
+    assert sorted(p.name for p in (tmp_path / "d").iterdir()) == [
+        "configs.parquet", "images", "manifest.json", "presses.parquet"]
+    made = json.loads((tmp_path / "d" / "manifest.json").read_text())
+    reference = json.loads((small_dataset / "manifest.json").read_text())
+    for key in ("counts", "redraws", "per_object"):
+        assert made[key] == reference[key]
+
+
 def test_the_driver_imports_no_simulator(tmp_path):
     """With worker processes, `vistac generate` itself plans and writes tables only: MuJoCo,
     trimesh and SciPy are imported by the workers' fork server, not by the `vistac` process."""
