@@ -20,6 +20,8 @@ def unit(v: np.ndarray, axis: int = -1) -> np.ndarray:
     """`v` scaled to unit length along `axis` (zero vectors stay zero)."""
     v = np.asarray(v)
     n = np.sqrt((v * v).sum(axis=axis, keepdims=True))  # np.linalg.norm's sum, without its checks
+    if (n > 0).all():  # the common case: a plain division (the same numbers, less work)
+        return v / n
     return np.divide(v, n, out=np.zeros_like(v, dtype=float), where=n > 0)
 
 

@@ -6,7 +6,6 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-import pandas as pd
 
 from vistac.config import Config, ConfigError, param
 from vistac.dataset.schema import SPLITS
@@ -32,16 +31,19 @@ class SplitCfg(Config):
                               f"{sum(self.fractions):g}")
 
 
-def assign_splits(configs: pd.DataFrame, by: str, fractions, seed: int) -> np.ndarray:
-    """Split labels for whole configurations, or whole objects when `by == "object"`."""
+def assign_splits(configs, by: str, fractions, seed: int) -> np.ndarray:
+    """Split labels for whole configurations, or whole objects when `by == "object"`.
+
+    `configs`: the configs table, or any mapping of its `config_id` / `object_id` columns.
+    """
     fr = np.asarray(fractions, float)
     if fr.shape != (3,) or not np.isfinite(fr).all() or (fr < 0).any() \
             or abs(fr.sum() - 1) > 1e-6:
         raise UserError(f"split fractions must be three numbers in [0, 1] summing to 1, got "
                         f"{fractions}")
     rng = np.random.default_rng([seed, 0x5B1])
-    keys = configs["object_id"] if by == "object" else configs["config_id"]
-    units = np.array(sorted(pd.unique(keys)))
+    keys = np.asarray(configs["object_id"] if by == "object" else configs["config_id"])
+    units = np.unique(keys)  # sorted
     units = units[rng.permutation(len(units))]
     bounds = np.round(np.cumsum(fr) * len(units)).astype(int)
     label_of = {u: SPLITS[int(np.searchsorted(bounds, i, side="right"))] for i, u in

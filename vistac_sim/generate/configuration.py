@@ -57,7 +57,9 @@ class ConfigStreams:
 
     def __getitem__(self, name: str) -> np.random.Generator:
         if name not in self._made:
-            self._made[name] = np.random.default_rng([*self.key, STREAMS.index(name), 0x5EED])
+            # = default_rng([...]), built directly (a quarter cheaper, the same stream)
+            self._made[name] = np.random.Generator(np.random.PCG64(np.random.SeedSequence(
+                [*self.key, STREAMS.index(name), 0x5EED])))
         return self._made[name]
 
 

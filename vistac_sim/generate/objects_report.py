@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import json
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 
-import pandas as pd
+import numpy as np
 from tqdm import tqdm
 
 from vistac.errors import UserError
@@ -66,35 +66,47 @@ def screen_objects(specs: list[ObjectSpec], cfg: GenerateCfg,
     return kept, skipped, repairs
 
 
-def object_summary(configs: pd.DataFrame, presses: pd.DataFrame, objects: list[dict],
-                   skipped: list[dict], repairs: dict[str, list[str]] | None = None
-                   ) -> list[dict]:
+def redraw_counts(text: str) -> Counter:
+    """The rejected draws of one configuration by reason, from its `redraw_reasons` cell
+    (``"reason:count,reason:count"``)."""
+    return Counter({name: int(count) for name, count in
+                    (item.split(":") for item in filter(None, text.split(",")))})
+
+
+def object_summary(configs: Mapping[str, np.ndarray], press_config_ids: np.ndarray,
+                   objects: list[dict], skipped: list[dict],
+                   repairs: dict[str, list[str]] | None = None) -> list[dict]:
     """Per object: status, configurations and presses accepted, rejected draws by reason.
 
     Args:
-        configs: the run's configs table (`object_id`, `redraw_reasons`, `failed_objects`).
-        presses: the run's presses table (`config_id`).
+        configs: the run's configs columns `config_id`, `object_id`, `redraw_reasons` and
+            (optional) `failed_objects`.
+        press_config_ids: the presses table's `config_id` column.
         objects: the specs of the objects used (`object_id`, `path`).
         skipped: objects and meshes skipped before the run (`object_id` or `path`, `reason`,
             optional `rejections`).
         repairs: what was repaired in each mesh, by object id.
     """
     repairs = repairs or {}
-    per_config = presses.groupby("config_id").size()
-    n_presses = configs["config_id"].map(per_config).fillna(0).astype(int)
+    ids, counts = np.unique(np.asarray(press_config_ids), return_counts=True)
+    presses_of = dict(zip(ids.tolist(), counts.tolist(), strict=True))
+    n_configs: Counter = Counter()
+    n_presses: Counter = Counter()
     rejections: dict[str, Counter] = {o["object_id"]: Counter() for o in objects}
-    for oid, text in zip(configs["object_id"], configs["redraw_reasons"], strict=True):
-        for item in filter(None, text.split(",")):
-            reason, count = item.split(":")
-            rejections[oid][reason] += int(count)
-    for text in configs.get("failed_objects", pd.Series(dtype=str)):
+    for cid, oid, text in zip(np.asarray(configs["config_id"]).tolist(),
+                              np.asarray(configs["object_id"]).tolist(),
+                              np.asarray(configs["redraw_reasons"]).tolist(), strict=True):
+        n_configs[oid] += 1
+        n_presses[oid] += presses_of.get(cid, 0)
+        rejections[oid].update(redraw_counts(text))
+    for text in np.asarray(configs.get("failed_objects", [])).tolist():
         for oid, counts in (json.loads(text) if text else {}).items():
             rejections.setdefault(oid, Counter()).update(counts)
     rows = []
     for o in objects:
-        mine = configs["object_id"] == o["object_id"]
-        rows.append({"object_id": o["object_id"], "path": o.get("path", ""), "status": "used",
-                     "configurations": int(mine.sum()), "presses": int(n_presses[mine].sum()),
+        oid = o["object_id"]
+        rows.append({"object_id": oid, "path": o.get("path", ""), "status": "used",
+                     "configurations": n_configs[oid], "presses": n_presses[oid],
                      "rejections": dict(sorted(rejections[o["object_id"]].items())),
                      "repairs": repairs.get(o["object_id"], [])})
     for s in skipped:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -182,10 +183,10 @@ def finalize(out: Path, n_chunks: int, manifest: dict, split_by: str, fractions,
     finally:
         for b in buckets:
             b.close()
-    cfg_df, prs_df = (pa.concat_tables(t).to_pandas() for t in kept)
-    cfg_df = cfg_df.sort_values("config_id").reset_index(drop=True)
-    cfg_df["split"] = assign_splits(cfg_df, split_by, fractions, seed)
-    split_of = cfg_df["split"].to_numpy()
+    book = pa.concat_tables(kept[0]).sort_by("config_id")
+    cols = {k: book[k].to_numpy(zero_copy_only=False) for k in book.column_names}
+    n_presses = sum(len(t) for t in kept[1])
+    split_of = assign_splits(cols, split_by, fractions, seed)
 
     def labelled(tables: Iterator[pa.Table]) -> Iterator[pa.Table]:
         start = 0
@@ -197,21 +198,21 @@ def finalize(out: Path, n_chunks: int, manifest: dict, split_by: str, fractions,
     write_row_groups(out / CONFIGS, schemas[0].insert(4, pa.field("split", pa.string())),
                      labelled(buckets[0].sorted(["config_id"])))
     write_row_groups(out / PRESSES, schemas[1], buckets[1].sorted(["config_id", "repeat"]))
-    counts = {**table_counts(cfg_df, prs_df),
-              "families": {k: int(v) for k, v in cfg_df["object_family"].value_counts().items()}}
-    reasons: dict[str, int] = {}
-    for text in cfg_df["redraw_reasons"]:
-        for item in filter(None, text.split(",")):
-            name, count = item.split(":")
-            reasons[name] = reasons.get(name, 0) + int(count)
-    from vistac_sim.generate.objects_report import object_summary
+    counts = {**table_counts(split_of, cols["object_id"], n_presses),
+              "families": dict(Counter(cols["object_family"].tolist()))}
+    from vistac_sim.generate.objects_report import object_summary, redraw_counts
 
-    per_object = object_summary(cfg_df, prs_df, manifest.get("objects", []),
+    reasons: Counter = Counter()
+    for text in cols["redraw_reasons"].tolist():
+        reasons.update(redraw_counts(text))
+
+    per_object = object_summary(cols, pa.concat_tables(kept[1])["config_id"].to_numpy(),
+                                manifest.get("objects", []),
                                 manifest.get("skipped_meshes", [])
                                 + manifest.get("skipped_objects", []),
                                 manifest.get("mesh_repairs"))
     manifest = {**manifest, "format_version": FORMAT_VERSION, "complete": True, "counts": counts,
-                "redraws": {"total": int(cfg_df["redraws"].sum()),
+                "redraws": {"total": int(cols["redraws"].sum()),
                             "by_reason": dict(sorted(reasons.items()))},
                 "per_object": per_object}
     write_manifest(out, manifest)

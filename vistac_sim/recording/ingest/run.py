@@ -279,7 +279,7 @@ def _manifest(src: IngestSources, cfg: IngestCfg, cfg_df, prs_df, rej_df, droppe
                     for k, v in sources.items()},
         "versions": files.versions("numpy", "pandas"),
         "effects": [],
-        "counts": {**files.table_counts(cfg_df, prs_df),
+        "counts": {**files.table_counts(cfg_df["split"], cfg_df["object_id"], len(prs_df)),
                    "grasps": int(len(prs_df) + len(rej_df)),
                    "rejected": int(len(rej_df)), "dropped_configs": len(dropped)},
         "rejected": {"by_reason": by_reason, "file": "rejected.csv",
