@@ -42,7 +42,7 @@ def test_a_truncated_shard_is_made_again_on_resume(env, monkeypatch, capsys):
     monkeypatch.setattr(run_mod, "run_chunk", stops_after_two)
     assert main(["generate", "--out", str(out), *args]) == 130
     monkeypatch.setattr(run_mod, "run_chunk", original)
-    shards = sorted((out / ".partial" / "shards").glob("*.configs.parquet"))
+    shards = sorted((out / ".partial" / "shards").glob("*.configs.arrow"))
     assert len(shards) == 2
     shards[0].write_bytes(shards[0].read_bytes()[:40])  # a damaged shard
     (out / "images" / ".000003.png.999999999.tmp").write_bytes(b"half")  # a killed writer's

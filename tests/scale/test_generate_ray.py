@@ -87,12 +87,12 @@ def test_killed_ray_driver_then_resume_equals_local(ray_local, local_reference, 
     proc = subprocess.Popen(cmd)
     shards = out / ".partial" / "shards"
     deadline = time.time() + 120
-    while time.time() < deadline and len(list(shards.glob("*.configs.parquet"))) < 2:
+    while time.time() < deadline and len(list(shards.glob("*.configs.arrow"))) < 2:
         assert proc.poll() is None, "the driver ended before it was killed"
         time.sleep(0.02)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
-    before = {int(p.name[6:11]) for p in shards.glob("*.configs.parquet")}
+    before = {int(p.name[6:11]) for p in shards.glob("*.configs.arrow")}
     assert 2 <= len(before) < N_CHUNKS and not (out / "manifest.json").exists()
     made = []
     commit = on_ray.commit_chunk

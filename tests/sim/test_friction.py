@@ -95,3 +95,33 @@ def test_labels_spread_inside_the_cone_at_mu_08():
     r_y = np.concatenate([res.force_sensor[:, 1] / np.linalg.norm(res.force_sensor[:, 1:], axis=1)
                           for _, res, _ in drawn])
     assert np.median(np.abs(r_y)) >= 0.05
+
+
+def test_the_cone_check_rejects_exactly_the_forces_beyond_the_cone():
+    """`check_physics` compares cosines; it must agree with the angle to the normal everywhere
+    but a hair's breadth from the cone's edge (and pass a zero force, as the angle does)."""
+    from vistac_sim.physics.checks import check_physics
+
+    rng = np.random.default_rng(7)
+    friction, tol = 0.8, 0.5
+    limit = np.degrees(np.arctan(friction)) + tol
+    decided = 0
+    for _ in range(2000):
+        normal = rng.normal(size=(2, 3))
+        force = normal + rng.normal(scale=rng.uniform(0.05, 2.0), size=(2, 3))
+        force[:, 2] = -np.abs(force[:, 2]) - 1e-3  # pushing: the pulling check passes
+        normal[:, 2] = -np.abs(normal[:, 2])
+        ang = angle_deg(force, normal)
+        if np.any(np.abs(ang - limit) < 1e-6):
+            continue
+        decided += 1
+        beyond = bool(np.any(ang > limit))
+        try:
+            check_physics(force, normal, friction, tol)
+            rejected = False
+        except RejectedSample as exc:
+            assert exc.reason == "outside_friction_cone"
+            rejected = True
+        assert rejected == beyond, (force, normal, ang)
+    assert decided > 1900
+    check_physics(np.array([[0.0, 0.0, -1.0], [0.0, 0.0, -1.0]]), np.zeros((2, 3)), 0.0, 0.0)

@@ -132,7 +132,7 @@ def test_kill_9_then_resume_equals_uninterrupted(tmp_path):
     proc = subprocess.Popen(cmd)
     shards = out / ".partial" / "shards"
     deadline = time.time() + 120
-    while time.time() < deadline and len(list(shards.glob("*.configs.parquet"))) < 3:
+    while time.time() < deadline and len(list(shards.glob("*.configs.arrow"))) < 3:
         time.sleep(0.05)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
@@ -169,9 +169,10 @@ def test_resume_with_other_settings_is_refused(tmp_path, capsys):
     (out / ".partial").mkdir(parents=True)
     (out / ".partial" / "run.json").write_text(json.dumps({"config": {"n": 1}, "objects": []}))
     (out / ".partial" / "shards").mkdir()
-    for kind in ("configs", "presses"):  # one committed shard (a run without one restarts)
-        pd.DataFrame({"config_id": [0]}).to_parquet(
-            out / ".partial" / "shards" / f"chunk_00000.{kind}.parquet")
+    from vistac_sim.generate.shards import shard_paths, write_shard
+
+    for path in shard_paths(out, 0):  # one committed shard (a run without one restarts)
+        write_shard(path, [{"config_id": 0}])
     assert _gen(out, "--n", "4", "--workers", "1", "--resume") == 2
     assert "other settings" in capsys.readouterr().err
 

@@ -10,6 +10,7 @@ resumed from its finished shards.
 from __future__ import annotations
 
 import json
+import os
 import shutil
 from collections import Counter
 from collections.abc import Iterator
@@ -17,37 +18,53 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
 
 from vistac.dataset import FORMAT_VERSION, MANIFEST, assign_splits
 from vistac.dataset.files import (
     atomic_write_json,
     remove_stale_temporaries,
     table_counts,
+    temporary_path,
     write_manifest,
     write_row_groups,
 )
 from vistac.dataset.schema import CONFIGS, IMAGES, PARTIAL, PRESSES
 from vistac.errors import UserError
 
+SHARD = ".arrow"
+"""Shards are Arrow IPC files: ~5x cheaper to write and read back than Parquet, and they only
+live in `.partial/` until the final tables are written."""
+
 
 def shard_paths(out: Path, chunk: int) -> tuple[Path, Path]:
     """(configs, presses) shard files of one chunk; the configs file is the commit marker."""
     d = out / PARTIAL / "shards"
-    return d / f"chunk_{chunk:05d}.configs.parquet", d / f"chunk_{chunk:05d}.presses.parquet"
+    return d / f"chunk_{chunk:05d}.configs{SHARD}", d / f"chunk_{chunk:05d}.presses{SHARD}"
+
+
+def write_shard(path: Path, rows: list[dict]) -> None:
+    """Write one shard table from its rows, atomically (a temporary file, then a rename)."""
+    table = pa.Table.from_pylist(rows)
+    tmp = temporary_path(path)
+    try:
+        with pa.OSFile(str(tmp), "wb") as fh, pa.ipc.new_file(fh, table.schema) as writer:
+            writer.write_table(table)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 def finished_chunks(out: Path) -> set[int]:
     """Chunks whose shard was committed (the configs file is written last) and reads back.
 
-    A shard whose files do not read back as Parquet (truncated, damaged) is deleted, so that its
-    chunk is made again.
+    A shard whose files do not read back (truncated, damaged) is deleted, so that its chunk is
+    made again.
     """
     d = out / PARTIAL / "shards"
     if not d.is_dir():
         return set()
     done = set()
-    for cpath in d.glob("chunk_*.configs.parquet"):
+    for cpath in d.glob(f"chunk_*.configs{SHARD}"):
         chunk = int(cpath.name[6:11])
         if all(_readable(p) for p in shard_paths(out, chunk)):
             done.add(chunk)
@@ -59,7 +76,8 @@ def finished_chunks(out: Path) -> set[int]:
 
 def _readable(path: Path) -> bool:
     try:
-        pq.read_metadata(path)
+        with pa.OSFile(str(path)) as fh:
+            pa.ipc.open_file(fh)  # reads the footer, which a truncated file lacks
     except (OSError, pa.ArrowException):
         return False
     return True
@@ -112,10 +130,10 @@ _BOOKKEEPING = ["config_id", "object_id", "object_family", "redraws", "redraw_re
 
 
 def _read_shard(path: Path, schema: pa.Schema | None = None) -> pa.Table:
-    """One shard's table (a small file: the plain reader, one thread, ~2x cheaper than
-    `pq.read_table`), in `schema` where one is given (a column missing from the shard is null)."""
-    with pq.ParquetFile(path) as fh:
-        table = fh.read(use_threads=False)
+    """One shard's table, in `schema` where one is given (a column missing from the shard is
+    null)."""
+    with pa.OSFile(str(path)) as fh:
+        table = pa.ipc.open_file(fh).read_all()
     if schema is None or table.schema == schema:
         return table
     return pa.Table.from_arrays(
@@ -125,7 +143,11 @@ def _read_shard(path: Path, schema: pa.Schema | None = None) -> pa.Table:
 
 def _common_schema(paths: list[Path]) -> pa.Schema:
     """One schema for all shards (a column that is null in one shard takes the others' type)."""
-    return pa.unify_schemas([pq.read_schema(p) for p in paths], promote_options="default")
+    schemas = []
+    for p in paths:
+        with pa.OSFile(str(p)) as fh:
+            schemas.append(pa.ipc.open_file(fh).schema)
+    return pa.unify_schemas(schemas, promote_options="default")
 
 
 class _Buckets:

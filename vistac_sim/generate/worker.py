@@ -76,8 +76,8 @@ def commit_chunk(out: Path, chunk_index: int, made: list[Configuration]) -> int:
             cid = c.row["config_id"]
             files.atomic_write_bytes(out / "recordings" / recording_name(cid), c.recording)
     cpath, ppath = shards.shard_paths(out, chunk_index)
-    files.write_table(ppath, [p for c in made for p in c.presses])
-    files.write_table(cpath, [c.row for c in made])  # written last: commits the chunk
+    shards.write_shard(ppath, [p for c in made for p in c.presses])
+    shards.write_shard(cpath, [c.row for c in made])  # written last: commits the chunk
     return len(made)
 
 

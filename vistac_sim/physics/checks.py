@@ -29,7 +29,11 @@ def check_physics(force: np.ndarray, normal: np.ndarray, friction: float, tol_de
     if not np.all(force[:, 2] < 0):
         raise RejectedSample("pulling_force", "a pad is not pushed (F_z >= 0)")
     limit = np.degrees(np.arctan(friction)) + tol_deg
-    ang = angle_deg(force, normal)
-    if np.any(ang > limit):
+    # angle <= limit  <=>  cos(angle) >= cos(limit): no angle is computed for a press that
+    # passes (most of them)
+    along = (force * normal).sum(1)
+    lengths = np.sqrt((force * force).sum(1) * (normal * normal).sum(1))
+    if np.any(along < np.cos(np.radians(limit)) * lengths):
+        ang = angle_deg(force, normal)
         raise RejectedSample("outside_friction_cone",
                              f"force {ang.max():.1f} deg off the normal (limit {limit:.1f})")
