@@ -36,13 +36,12 @@ PARTS: dict[str, list[tuple[str, str]]] = {
     "PNG encode": [("png.py", "encode_png")],
     "image write": [("files.py", "atomic_write_bytes"), ("pathlib.py", "write_bytes"),
                     ("worker.py", "_write_image")],
-    "shard write (Parquet per chunk)": [("files.py", "write_table")],
+    "shard write (Arrow per chunk)": [("shards.py", "write_shard")],
     "final tables and manifest": [("shards.py", "finalize")],
     "scene close": [("scenes.py", "close")],
 }
-# calls that do not count towards a part: the final tables write Parquet and JSON too
+# calls that do not count towards a part: the final tables write JSON too
 NOT_FROM: dict[str, list[tuple[str, str]]] = {
-    "shard write (Parquet per chunk)": [("shards.py", "finalize")],
     "image write": [("files.py", "atomic_write_json")],
 }
 

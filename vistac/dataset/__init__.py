@@ -19,7 +19,6 @@ from vistac.dataset.files import (
     write_manifest,
     write_table,
 )
-from vistac.dataset.reader import DatasetTables, open_dataset, read_manifest
 from vistac.dataset.schema import (
     FINGERS,
     FORMAT_VERSION,
@@ -47,3 +46,15 @@ __all__ = [
     "write_manifest",
     "write_table",
 ]
+
+_READER = ("DatasetTables", "open_dataset", "read_manifest")
+
+
+def __getattr__(name: str):
+    """The reader's names, imported on first use: it needs pandas, which the writers (the
+    `vistac generate` driver, its workers) do without."""
+    if name in _READER:
+        from vistac.dataset import reader
+
+        return getattr(reader, name)
+    raise AttributeError(f"module 'vistac.dataset' has no attribute {name!r}")

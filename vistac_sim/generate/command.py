@@ -16,7 +16,6 @@ from vistac.config import (
     from_options,
     option_values,
 )
-from vistac.dataset.files import check_out_dir
 from vistac.engine import ENGINE_OPTIONS, WRITES_OPTIONS, EngineCfg
 from vistac.errors import UserError
 from vistac_sim.effects.presets import PRESETS, resolve
@@ -112,20 +111,28 @@ def drop_unstarted_run(out: Path, existed: bool) -> None:
 
 
 def _generate(args: argparse.Namespace) -> int:
-    from vistac_sim.generate.objects_report import format_summary
-    from vistac_sim.generate.run import generate
+    from vistac_sim.generate.processes import start_fork_server, stop_fork_server
 
     cfg = generate_cfg_from_args(args)
     workers = check_workers(args.workers)
     engine = from_options(EngineCfg, args, ENGINE_OPTIONS + WRITES_OPTIONS)
-    out = check_out_dir(args.out)
-    existed = out.exists()
+    if engine.engine == "local" and workers > 1:
+        start_fork_server()  # the workers' imports run beside this process's own, below
     try:
-        manifest = generate(cfg, args.out, workers=workers, resume=args.resume,
-                            progress=not args.no_progress, engine=engine)
-    except BaseException:
-        drop_unstarted_run(out, existed)
-        raise
+        from vistac.dataset.files import check_out_dir
+        from vistac_sim.generate.objects_report import format_summary
+        from vistac_sim.generate.run import generate
+
+        out = check_out_dir(args.out)
+        existed = out.exists()
+        try:
+            manifest = generate(cfg, args.out, workers=workers, resume=args.resume,
+                                progress=not args.no_progress, engine=engine)
+        except BaseException:
+            drop_unstarted_run(out, existed)
+            raise
+    finally:
+        stop_fork_server()
     summary = {k: manifest[k] for k in ("counts", "redraws", "wall_time_s")}
     print(format_summary(manifest["per_object"]))
     print(f"wrote {args.out}: " + json.dumps(summary))

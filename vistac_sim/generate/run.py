@@ -15,9 +15,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
 from dataclasses import dataclass
-from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -29,9 +27,9 @@ from vistac_sim.effects import build_pipeline
 from vistac_sim.generate import shards
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.objects_report import screen_objects
+from vistac_sim.generate.processes import in_worker, stop_fork_server, worker_pool
 from vistac_sim.objects.specs import ObjectSpec, object_index, procedural_library
 
-WORKER_MODULE = "vistac_sim.generate.worker"
 VERSIONED = ("mujoco", "numpy", "trimesh")  # what decides the bytes of a dataset
 
 
@@ -82,63 +80,11 @@ def object_specs(cfg: GenerateCfg, seed: int) -> tuple[list[ObjectSpec], list[di
     return procedural_library(cfg.objects, seed), []
 
 
-# ------------------------------------------------------------------------------ worker processes
-def worker_context() -> mp.context.BaseContext:
-    """Processes for workers: forked from a fork server that imported the simulator once.
-
-    The server starts fresh (no GL context, no threads of this process) and imports the worker
-    module and what it needs; each worker is a fork of it, so workers do not import MuJoCo,
-    trimesh, pandas and SciPy again (about a second of CPU each), and each makes its own GL
-    context.
-    """
-    ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload([WORKER_MODULE])
-    return ctx
-
-
-@contextmanager
-def _pool(workers: int, *initargs):
-    """A pool of `workers` forked workers (initialised with `initargs` for chunks), or None for
-    one worker: the work then runs in this process."""
-    if workers == 1:
-        yield None
-        return
-    init = in_worker("init_worker") if initargs else None
-    with worker_context().Pool(workers, initializer=init, initargs=initargs) as pool:
-        yield pool
-
-
-def stop_fork_server() -> None:
-    """Stop this process's fork server, if one runs, and wait for it: a run leaves no process
-    behind, and its workers' CPU time counts among this process's children (`getrusage`).
-
-    `ForkServer._stop` is the standard library's own way (private, there since Python 3.8); it
-    does nothing when no server runs.
-    """
-    from multiprocessing import forkserver
-
-    stop = getattr(forkserver._forkserver, "_stop", None)
-    if stop is not None:
-        stop()
-
-
-def in_worker(name: str) -> partial:
-    """`vistac_sim.generate.worker.<name>`, as a picklable callable that does not import the
-    worker module here (the workers have it preloaded)."""
-    return partial(_call_worker, name)
-
-
-def _call_worker(name: str, *args):
-    from vistac_sim.generate import worker
-
-    return getattr(worker, name)(*args)
-
-
 def _screen(specs: list[ObjectSpec], cfg: GenerateCfg, workers: int, progress: bool):
     """Screen the objects in worker processes (this process imports no simulator); returns
     `screen_objects`' result and the versions of what the workers run (for the manifest)."""
     jobs = [(k, spec, cfg) for k, spec in enumerate(specs)]
-    with _pool(min(workers, len(specs))) as pool:
+    with worker_pool(min(workers, len(specs))) as pool:
         outcomes = (pool.imap if pool else map)(in_worker("screen_object"), jobs)
         screened = screen_objects(specs, cfg, outcomes, progress)
         versions = pool.apply(files.versions, VERSIONED) if pool else files.versions(*VERSIONED)
@@ -157,7 +103,7 @@ def _run_local(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[
         finally:
             worker.close_worker()
     else:
-        with _pool(workers, cfg, specs, str(out)) as pool:
+        with worker_pool(workers, cfg, specs, str(out)) as pool:
             yield from pool.imap_unordered(in_worker("run_task"), plan_tasks(todo, workers))
 
 

@@ -2,7 +2,7 @@
 
 The driver (`vistac_sim.generate.run`) plans and never builds a scene itself; everything that
 needs meshes, MuJoCo or a renderer lives here, imported once by the fork server that the workers
-fork from (`run.worker_context`), or in the driver's own process when it runs with one worker.
+fork from (`processes.worker_context`), or in the driver's own process when it runs with one worker.
 A chunk is a pure function of (seed, config ids, config), so the dataset is identical whatever
 the number of workers.
 """
