@@ -12,6 +12,9 @@ from contextlib import contextmanager
 from functools import partial
 
 WORKER_MODULE = "vistac_sim.generate.worker"
+# What the fork server imports for its workers: the worker module, and pandas, which pyarrow
+# imports on its first table (a shard): once in the server, not once per worker.
+PRELOAD = [WORKER_MODULE, "pandas"]
 
 
 def start_fork_server() -> None:
@@ -32,7 +35,7 @@ def worker_context() -> mp.context.BaseContext:
     context.
     """
     ctx = mp.get_context("forkserver")
-    ctx.set_forkserver_preload([WORKER_MODULE])
+    ctx.set_forkserver_preload(PRELOAD)
     return ctx
 
 

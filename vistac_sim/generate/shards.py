@@ -195,19 +195,25 @@ def finalize(out: Path, n_chunks: int, manifest: dict, split_by: str, fractions,
     spill.mkdir(parents=True)
     buckets = [_Buckets(spill, name, schema) for name, schema in zip(("configs", "presses"),
                                                                       schemas, strict=True)]
-    kept: tuple[list[pa.Table], list[pa.Table]] = ([], [])
+    # Kept as NumPy copies: an Arrow column read from a shard holds the shard's whole buffer.
+    kept: dict[str, list[np.ndarray]] = {k: [] for k in [*_BOOKKEEPING, "press_config_id"]}
     try:
         for p in paths:
-            for k, columns in enumerate((_BOOKKEEPING, ["config_id"])):
+            for k, (bucket, columns) in enumerate(zip(buckets, (_BOOKKEEPING, ["config_id"]),
+                                                       strict=True)):
                 table = _read_shard(p[k], schemas[k])
-                buckets[k].add(table)
-                kept[k].append(table.select(columns))
+                bucket.add(table)
+                for c in columns:
+                    kept[c if k == 0 else "press_config_id"].append(
+                        np.array(table[c].to_numpy(zero_copy_only=False)))
     finally:
         for b in buckets:
             b.close()
-    book = pa.concat_tables(kept[0]).sort_by("config_id")
-    cols = {k: book[k].to_numpy(zero_copy_only=False) for k in book.column_names}
-    n_presses = sum(len(t) for t in kept[1])
+    press_config_ids = np.concatenate(kept.pop("press_config_id"))
+    cols = {k: np.concatenate(v) for k, v in kept.items()}
+    order = np.argsort(cols["config_id"], kind="stable")
+    cols = {k: v[order] for k, v in cols.items()}
+    n_presses = len(press_config_ids)
     split_of = assign_splits(cols, split_by, fractions, seed)
 
     def labelled(tables: Iterator[pa.Table]) -> Iterator[pa.Table]:
@@ -228,7 +234,7 @@ def finalize(out: Path, n_chunks: int, manifest: dict, split_by: str, fractions,
     for text in cols["redraw_reasons"].tolist():
         reasons.update(redraw_counts(text))
 
-    per_object = object_summary(cols, pa.concat_tables(kept[1])["config_id"].to_numpy(),
+    per_object = object_summary(cols, press_config_ids,
                                 manifest.get("objects", []),
                                 manifest.get("skipped_meshes", [])
                                 + manifest.get("skipped_objects", []),
