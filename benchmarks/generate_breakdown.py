@@ -83,11 +83,14 @@ def _profiled(fn, *args) -> tuple[pstats.Stats, float]:
 
 def profile_generate(n: int, seed: int, out: Path) -> dict[str, float]:
     """Per-sample breakdown (ms) of an in-process `generate` of `n` configurations."""
+    # Imported before the clock, as generate's fork server imports the worker module and pandas
+    # (`processes.PRELOAD`) before its workers start; the bare loop's likewise.
+    import pandas  # noqa: F401
+
     from vistac_sim.effects.presets import resolve
     from vistac_sim.generate.config import GenerateCfg
     from vistac_sim.generate.run import generate
-    from vistac_sim.generate.worker import make_chunk  # noqa: F401  (imported before the clock,
-    # as generate's fork server imports it before its workers start; the bare loop's likewise)
+    from vistac_sim.generate.worker import make_chunk  # noqa: F401
 
     cfg = GenerateCfg(n=n, seed=seed)
     cfg.effects, cfg.recording = resolve(None, None, 0.05)  # what the benchmark's CLI run uses
