@@ -84,21 +84,24 @@ def test_same_seed_same_bytes_whatever_the_workers(tmp_path):
         assert img.read_bytes() == (tmp_path / "w2" / "images" / img.name).read_bytes()
 
 
+@pytest.mark.parametrize("merge_rows, max_buckets", [(7, 256), (2, 4)])
 def test_the_final_merge_holds_one_bucket_of_ids_at_a_time(tmp_path, small_dataset,
-                                                           monkeypatch):
-    """With buckets of 7 configuration ids, the 24 configurations of `small_dataset` (made in
-    chunks of 5 that interleave ids across objects) are merged into the same tables, sorted,
-    one row group per bucket, and nothing of the merge is left behind."""
+                                                           monkeypatch, merge_rows, max_buckets):
+    """With buckets of 7 configuration ids (or of 2, but at most 4 buckets: 6 ids each), the 24
+    configurations of `small_dataset` (made in chunks of 5 that interleave ids across objects)
+    are merged into the same tables, sorted, one row group per bucket, and nothing of the merge
+    is left behind."""
     import pyarrow.parquet as pq
 
     from vistac_sim.generate import shards
 
-    monkeypatch.setattr(shards, "MERGE_ROWS", 7)
+    monkeypatch.setattr(shards, "MERGE_ROWS", merge_rows)
+    monkeypatch.setattr(shards, "MAX_BUCKETS", max_buckets)
     assert _gen(tmp_path / "d", "--n", "24", "--noise", "0.05", "--seed", "1", "--workers",
                 "1", "--n-objects", "8", "--chunk-size", "5") == 0
     for name in ("configs.parquet", "presses.parquet"):
         merged = pq.ParquetFile(tmp_path / "d" / name)
-        assert merged.metadata.num_row_groups == 4  # ids 0-6, 7-13, 14-20, 21-23
+        assert merged.metadata.num_row_groups == 4  # ids 0-6, 7-13, 14-20, 21-23 (or 6 each)
         pd.testing.assert_frame_equal(merged.read().to_pandas(),
                                       pd.read_parquet(small_dataset / name))
     assert sorted(p.name for p in (tmp_path / "d").iterdir()) == [

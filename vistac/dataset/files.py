@@ -55,32 +55,26 @@ PARQUET_OPTIONS = {"compression": "zstd", "write_statistics": False}
 """How every dataset table is written (deterministic bytes for identical rows)."""
 
 
-def write_table(path: Path, rows: list[dict] | pd.DataFrame) -> None:
-    """Write rows as Parquet, atomically, with deterministic bytes for identical rows."""
-    if isinstance(rows, list):  # straight to Arrow: ~8x cheaper than through a DataFrame
-        table = pa.Table.from_pylist(rows)
-    else:
-        table = pa.Table.from_pandas(rows, preserve_index=False).replace_schema_metadata(None)
+def write_table(path: Path, frame: pd.DataFrame) -> None:
+    """Write a table as Parquet, atomically, with deterministic bytes for identical rows."""
+    table = pa.Table.from_pandas(frame, preserve_index=False).replace_schema_metadata(None)
     write_row_groups(path, table.schema, [table])
 
 
-def write_row_groups(path: Path, schema: pa.Schema, tables: Iterable[pa.Table]) -> int:
+def write_row_groups(path: Path, schema: pa.Schema, tables: Iterable[pa.Table]) -> None:
     """Write `tables` (each of `schema`) as the row groups of one Parquet file, atomically.
 
     Only one of `tables` is held at a time, so a table larger than memory can be written from a
-    generator. Returns the number of rows written.
+    generator.
     """
     tmp = temporary_path(path)
-    rows = 0
     try:
         with pq.ParquetWriter(tmp, schema, **PARQUET_OPTIONS) as writer:
             for table in tables:
                 writer.write_table(table, row_group_size=max(1, len(table)))
-                rows += len(table)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
-    return rows
 
 
 def remove_stale_temporaries(folder: Path) -> int:

@@ -80,7 +80,7 @@ def object_summary(configs: Mapping[str, np.ndarray], press_config_ids: np.ndarr
 
     Args:
         configs: the run's configs columns `config_id`, `object_id`, `redraw_reasons` and
-            (optional) `failed_objects`.
+            `failed_objects`.
         press_config_ids: the presses table's `config_id` column.
         objects: the specs of the objects used (`object_id`, `path`).
         skipped: objects and meshes skipped before the run (`object_id` or `path`, `reason`,
@@ -99,7 +99,7 @@ def object_summary(configs: Mapping[str, np.ndarray], press_config_ids: np.ndarr
         n_configs[oid] += 1
         n_presses[oid] += presses_of.get(cid, 0)
         rejections[oid].update(redraw_counts(text))
-    for text in np.asarray(configs.get("failed_objects", [])).tolist():
+    for text in np.asarray(configs["failed_objects"]).tolist():
         for oid, counts in (json.loads(text) if text else {}).items():
             rejections.setdefault(oid, Counter()).update(counts)
     rows = []

@@ -172,5 +172,5 @@ def _generate(cfg: GenerateCfg, out: Path, workers: int, resume: bool, progress:
         "resumed": bool(resume),
         "wall_time_s": round(time.perf_counter() - t0, 3),
     }
-    return shards.finalize(out, len(chunks), manifest, cfg.split.by, cfg.split.fractions,
+    return shards.finalize(out, len(chunks), cfg.n, manifest, cfg.split.by, cfg.split.fractions,
                             cfg.seed)

@@ -123,18 +123,20 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
 
 MERGE_ROWS = 5_000
 """Configurations per row group of the final tables: the merge holds one such group at a time."""
+MAX_BUCKETS = 256
+"""At most this many buckets (two open spill files each) however large the run: past
+MERGE_ROWS * MAX_BUCKETS configurations (1.28 M) the buckets grow instead, so that a huge run
+cannot exhaust the open-file limit (often 1024) at its very end."""
 
-_BOOKKEEPING = ["config_id", "object_id", "object_family", "redraws", "redraw_reasons",
-                "failed_objects"]
+_BOOKKEEPING = ["config_id", "object_id", "object_family", "redraw_reasons", "failed_objects"]
 """The configs columns the manifest's counts and per-object summary are made from."""
 
 
-def _read_shard(path: Path, schema: pa.Schema | None = None) -> pa.Table:
-    """One shard's table, in `schema` where one is given (a column missing from the shard is
-    null)."""
+def _read_shard(path: Path, schema: pa.Schema) -> pa.Table:
+    """One shard's table, in `schema` (a column missing from the shard is null)."""
     with pa.OSFile(str(path)) as fh:
         table = pa.ipc.open_file(fh).read_all()
-    if schema is None or table.schema == schema:
+    if table.schema == schema:
         return table
     return pa.Table.from_arrays(
         [table[f.name].cast(f.type) if f.name in table.column_names
@@ -151,17 +153,17 @@ def _common_schema(paths: list[Path]) -> pa.Schema:
 
 
 class _Buckets:
-    """Spill files that sort rows by configuration id range, `MERGE_ROWS` ids per bucket."""
+    """Spill files that sort rows by configuration id range, `ids` ids per bucket."""
 
-    def __init__(self, folder: Path, name: str, schema: pa.Schema):
-        self.folder, self.name, self.schema = folder, name, schema
+    def __init__(self, folder: Path, name: str, schema: pa.Schema, ids: int):
+        self.folder, self.name, self.schema, self.ids = folder, name, schema, ids
         self.writers: dict[int, pa.ipc.RecordBatchStreamWriter] = {}
 
     def path(self, bucket: int) -> Path:
         return self.folder / f"{self.name}_{bucket:05d}.arrows"
 
     def add(self, table: pa.Table) -> None:
-        bucket = table["config_id"].to_numpy() // MERGE_ROWS
+        bucket = table["config_id"].to_numpy() // self.ids
         for b in np.unique(bucket).tolist():
             if b not in self.writers:
                 self.writers[b] = pa.ipc.new_stream(self.path(b), self.schema)
@@ -180,8 +182,10 @@ class _Buckets:
             self.path(b).unlink()
 
 
-def finalize(out: Path, n_chunks: int, manifest: dict, split_by: str, fractions, seed: int) -> dict:
-    """Merge shards into the final tables, write the manifest last, remove `.partial/`.
+def finalize(out: Path, n_chunks: int, n: int, manifest: dict, split_by: str, fractions,
+             seed: int) -> dict:
+    """Merge the shards of `n_chunks` chunks (`n` configurations) into the final tables, write
+    the manifest last, remove `.partial/`.
 
     Memory stays flat in the run's size: shards are read one at a time and spilled into buckets
     of `MERGE_ROWS` configuration ids (Arrow stream files in `.partial/merge/`), then each bucket
@@ -193,23 +197,25 @@ def finalize(out: Path, n_chunks: int, manifest: dict, split_by: str, fractions,
     spill = out / PARTIAL / "merge"
     shutil.rmtree(spill, ignore_errors=True)
     spill.mkdir(parents=True)
-    buckets = [_Buckets(spill, name, schema) for name, schema in zip(("configs", "presses"),
-                                                                      schemas, strict=True)]
+    ids = max(MERGE_ROWS, -(-n // MAX_BUCKETS))
+    buckets = [_Buckets(spill, name, schema, ids) for name, schema in
+               zip(("configs", "presses"), schemas, strict=True)]
     # Kept as NumPy copies: an Arrow column read from a shard holds the shard's whole buffer.
-    kept: dict[str, list[np.ndarray]] = {k: [] for k in [*_BOOKKEEPING, "press_config_id"]}
+    kept: dict[str, list[np.ndarray]] = {c: [] for c in _BOOKKEEPING}
+    pressed: list[np.ndarray] = []  # the presses' config ids
     try:
-        for p in paths:
-            for k, (bucket, columns) in enumerate(zip(buckets, (_BOOKKEEPING, ["config_id"]),
-                                                       strict=True)):
-                table = _read_shard(p[k], schemas[k])
-                bucket.add(table)
-                for c in columns:
-                    kept[c if k == 0 else "press_config_id"].append(
-                        np.array(table[c].to_numpy(zero_copy_only=False)))
+        for cpath, ppath in paths:
+            configs = _read_shard(cpath, schemas[0])
+            buckets[0].add(configs)
+            for c in _BOOKKEEPING:
+                kept[c].append(np.array(configs[c].to_numpy(zero_copy_only=False)))
+            presses = _read_shard(ppath, schemas[1])
+            buckets[1].add(presses)
+            pressed.append(np.array(presses["config_id"].to_numpy()))
     finally:
         for b in buckets:
             b.close()
-    press_config_ids = np.concatenate(kept.pop("press_config_id"))
+    press_config_ids = np.concatenate(pressed)
     cols = {k: np.concatenate(v) for k, v in kept.items()}
     order = np.argsort(cols["config_id"], kind="stable")
     cols = {k: v[order] for k, v in cols.items()}
@@ -240,7 +246,7 @@ def finalize(out: Path, n_chunks: int, manifest: dict, split_by: str, fractions,
                                 + manifest.get("skipped_objects", []),
                                 manifest.get("mesh_repairs"))
     manifest = {**manifest, "format_version": FORMAT_VERSION, "complete": True, "counts": counts,
-                "redraws": {"total": int(cols["redraws"].sum()),
+                "redraws": {"total": sum(reasons.values()),
                             "by_reason": dict(sorted(reasons.items()))},
                 "per_object": per_object}
     write_manifest(out, manifest)
