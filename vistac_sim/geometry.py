@@ -31,10 +31,3 @@ def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     cross = np.linalg.norm(np.cross(a, b), axis=-1) if a.shape[-1] == 3 else np.abs(
         a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
     return np.degrees(np.arctan2(cross, (a * b).sum(-1)))
-
-
-def closest_on_segment(p: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
-    """Closest point to `p` on the segment s0-s1."""
-    d = s1 - s0
-    t = np.clip(np.dot(p - s0, d) / max(np.dot(d, d), 1e-300), 0.0, 1.0)
-    return s0 + t * d

@@ -69,3 +69,23 @@ def test_triangle_index_fast_path_agrees_with_the_full_search():
         np.testing.assert_allclose(q, r, atol=1e-7)
         assert len(normals) >= 1
     assert fast_used > 150  # the fast path is the common case (179 of 300 here)
+
+
+def test_triangle_index_fast_path_sees_past_a_neighbouring_plane():
+    """Beside a box's edge the neighbouring face's plane passes closer than the touched face:
+    only its exact (edge) distance shows that it is farther; the fast path must answer, and
+    agree with the full search."""
+    mesh = trimesh.creation.box(extents=[1, 1, 1])
+    index = TriangleIndex(mesh.vertices, mesh.faces)
+    rng = np.random.default_rng(2)
+    for _ in range(50):
+        d = rng.uniform(1e-3, 1e-2)
+        p = np.array([0.5 + d, 0.5 - rng.uniform(0.05, 0.95) * d, rng.uniform(-0.4, 0.4)])
+        q_full = closest_point_on_triangles(p, mesh.triangles)
+        best = q_full[np.argmin(np.linalg.norm(q_full - p, axis=1))]
+        fast = index._inside_face(p, np.arange(len(mesh.faces)))
+        assert fast is not None
+        np.testing.assert_allclose(fast[0], best, atol=1e-12)
+        np.testing.assert_allclose(fast[1], [[1.0, 0.0, 0.0]], atol=1e-12)
+    # just past the edge the closest point is on it: the fast path declines
+    assert index._inside_face(np.array([0.505, 0.501, 0.0]), np.arange(len(mesh.faces))) is None

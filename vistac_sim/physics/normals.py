@@ -6,11 +6,12 @@ turns MuJoCo's contacts of a settled press into the outward normal at each pad's
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from vistac_sim.geometry import closest_on_segment, rot2, unit
+from vistac_sim.geometry import unit
 
 if TYPE_CHECKING:
     from vistac_sim.physics.press import PressResult
@@ -38,26 +39,45 @@ def surface_normals(triangles: TriangleIndex, grasp: Grasp, res: PressResult,
         res: The settled press (tip positions, pad contacts).
         reach: Length of the pad capsule's axis behind the tip centre (2 * tip_half_length).
     """
-    # World <-> object frame: rotation about z by the object's yaw, then its offset.
-    rot = np.eye(3)
-    rot[:2, :2] = rot2(grasp.object_yaw)
-    origin = np.array([grasp.object_xy[0], grasp.object_xy[1], 0.0])
-    out = np.zeros((2, 3))
+    # Scalar arithmetic per contact (one or two per pad): NumPy's per-call overhead would cost
+    # more than the work. Object frame: rotation about z by -yaw after removing the offset.
+    c, s = float(np.cos(grasp.object_yaw)), float(np.sin(grasp.object_yaw))
+    ox, oy = float(grasp.object_xy[0]), float(grasp.object_xy[1])
+    out = []
     for k in range(2):
-        axis = np.array([grasp.approach[k, 0], grasp.approach[k, 1], 0.0])
-        tip = res.tip[k]
-        for *pos, weight in res.pad_contacts[k]:
-            centre = closest_on_segment(np.asarray(pos), tip - axis * reach, tip)
-            q_obj, face_n = triangles.closest(rot.T @ (centre - origin),
-                                              around=rot.T @ (np.asarray(pos) - origin))
-            if np.all(face_n @ face_n[0] > _FLAT_COS):
-                n = rot @ face_n[0]
-                if n @ (centre - (rot @ q_obj + origin)) < 0:  # an open mesh seen from behind
-                    n = -n
+        ax, ay = grasp.approach[k].tolist()
+        tx, ty, tz = res.tip[k].tolist()
+        sx, sy = tx - ax * reach, ty - ay * reach  # back end of the pad's (horizontal) axis
+        dx, dy = tx - sx, ty - sy
+        dd = max(dx * dx + dy * dy, 1e-300)
+        acc = [0.0, 0.0, 0.0]
+        for px, py, pz, weight in res.pad_contacts[k].tolist():
+            t = min(max(((px - sx) * dx + (py - sy) * dy) / dd, 0.0), 1.0)
+            cx, cy = sx + t * dx - ox, sy + t * dy - oy
+            centre = (c * cx + s * cy, c * cy - s * cx, tz)
+            px, py = px - ox, py - oy
+            q, normals = triangles.query(centre, (c * px + s * py, c * py - s * px, pz))
+            to_pad = [centre[i] - q[i] for i in range(3)]
+            n = normals[0]
+            if len(normals) == 1 or all(_dot(m, n) > _FLAT_COS for m in normals):
+                if _dot(n, to_pad) < 0:  # an open mesh seen from behind
+                    n = [-x for x in n]
             else:
-                n = unit(centre - (rot @ q_obj + origin))
-            out[k] += max(weight, 1e-12) * n
-    return unit(out)
+                n = _unit(to_pad)
+            weight = max(weight, 1e-12)
+            acc = [acc[i] + weight * n[i] for i in range(3)]
+        nx, ny, nz = _unit(acc)
+        out.append((c * nx - s * ny, s * nx + c * ny, nz))  # back to the world frame
+    return np.array(out)
+
+
+def _dot(a, b) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def _unit(v) -> list[float]:
+    length = math.sqrt(_dot(v, v))
+    return [x / length for x in v] if length > 0 else [0.0, 0.0, 0.0]
 
 
 class TriangleIndex:
@@ -78,10 +98,15 @@ class TriangleIndex:
         inv = np.zeros_like(gram)
         inv[ok] = np.linalg.inv(gram[ok])
         self.bary = inv @ np.stack([e1, e2], 1)  # (F, 2, 3)
-        # What the fast path reads per face, in one row (one gather per query): first vertex,
+        # What the fast path reads per face, in one block (one gather per query): first vertex,
         # normal, barycentric rows.
-        self._rows = np.concatenate([self.tri[:, 0], self.face_normals,
-                                     self.bary.reshape(-1, 6)], axis=1)  # (F, 12)
+        self._rows = np.stack([self.tri[:, 0], self.face_normals, self.bary[:, 0],
+                               self.bary[:, 1]], axis=1)  # (F, 4, 3)
+        # Edges (a->b, b->c, c->a) and their inverse squared lengths, for exact distances.
+        self._edges = np.roll(self.tri, -1, axis=1) - self.tri  # (F, 3, 3)
+        length2 = (self._edges * self._edges).sum(-1)
+        self._inv_length2 = np.divide(1.0, length2, out=np.zeros_like(length2),
+                                      where=length2 > 0)
 
     def _near(self, c: np.ndarray, radius: float) -> np.ndarray:
         """Indices of the faces whose box lies within `radius` of `c` (all if none)."""
@@ -98,38 +123,70 @@ class TriangleIndex:
         Faces whose own closest point lies within `tol` of the best one share that point (it sits
         on their common edge or corner); their normals span the normal cone there.
         """
-        p = np.asarray(point, float)
-        idx = self._near(p if around is None else np.asarray(around, float), radius)
-        fast = self._inside_face(p, idx)
+        p = np.asarray(point, float).tolist()
+        q, normals = self.query(p, p if around is None else np.asarray(around, float).tolist(),
+                                radius, tol)
+        return np.array(q), np.array(normals)
+
+    def query(self, point, around, radius: float = 0.002,
+              tol: float = 1e-9) -> tuple[list[float], list[list[float]]]:
+        """`closest` for 3-sequences of floats, answered in Python floats (the labels' hot path:
+        one query per contact)."""
+        idx = self._near(np.array(around), radius)
+        fast = self._inside_face(point, idx, tol)
         if fast is not None:
             return fast
+        p = np.array(point, float)
         q = closest_point_on_triangles(p, self.tri[idx])
         dist = np.sqrt(((q - p) ** 2).sum(1))
         k = int(np.argmin(dist))
-        touching = idx[dist <= dist[k] + tol]
-        return q[k], self.face_normals[touching]
+        return q[k].tolist(), self.face_normals[idx[dist <= dist[k] + tol]].tolist()
 
-    def _inside_face(self, p: np.ndarray, idx: np.ndarray,
-                     margin: float = 1e-6) -> tuple[np.ndarray, np.ndarray] | None:
-        """The common case, exactly: `p` projects well inside face j, and no other candidate
-        that is not coplanar with j has its plane closer (a face's distance is at least its
-        plane's), so j holds the closest point and it lies on no edge. None otherwise."""
-        rows = self._rows[idx]
-        w = p - rows[:, 0:3]
-        normals = rows[:, 3:6]
-        plane = (w * normals).sum(1)
-        u = (rows[:, 6:9] * w).sum(1)
-        v = (rows[:, 9:12] * w).sum(1)
-        inside = (u > margin) & (v > margin) & (u + v < 1 - margin)
-        if not inside.any():
+    def _inside_face(self, p, idx: np.ndarray, tol: float = 1e-9,
+                     margin: float = 1e-6) -> tuple[list[float], list[list[float]]] | None:
+        """The common case, exactly: `p` projects well inside face j, and every other candidate
+        that is not coplanar with j lies farther than `tol` beyond it (first by its plane's
+        distance, a lower bound; where that does not tell, by its exact distance, which is then
+        on one of its edges), so j holds the closest point and it lies on no edge. None
+        otherwise. In Python floats: a query has a few candidates (two in most presses)."""
+        px, py, pz = p
+        rows = self._rows[idx].tolist()
+        planes, j = [], -1
+        for k, (a, n, b0, b1) in enumerate(rows):
+            wx, wy, wz = px - a[0], py - a[1], pz - a[2]
+            plane = wx * n[0] + wy * n[1] + wz * n[2]
+            u = wx * b0[0] + wy * b0[1] + wz * b0[2]
+            v = wx * b1[0] + wy * b1[1] + wz * b1[2]
+            inside = u > margin and v > margin and u + v < 1 - margin
+            planes.append((plane, inside))
+            if inside and (j < 0 or abs(plane) < abs(planes[j][0])):
+                j = k
+        if j < 0:
             return None
-        dist = np.abs(plane)
-        j = int(np.argmin(np.where(inside, dist, np.inf)))
-        n = normals[j]
-        coplanar = (normals @ n > _COPLANAR_COS) & (np.abs(plane - plane[j]) < 1e-12)
-        if ((~coplanar) & (dist <= dist[j] + 1e-12)).any():
+        plane_j, n = planes[j][0], rows[j][1]
+        limit = abs(plane_j) + tol
+        others = []  # faces whose plane passes as close as j's and that are not coplanar with it
+        for k, (plane, inside) in enumerate(planes):
+            if k == j or abs(plane) > limit or (
+                    _dot(rows[k][1], n) > _COPLANAR_COS and abs(plane - plane_j) < 1e-12):
+                continue
+            if inside:  # its own closest point is as close as j's
+                return None
+            others.append(int(idx[k]))
+        if others and min(self._edge_distance2(p, f) for f in others) <= limit * limit:
             return None
-        return p - plane[j] * n, n[None]
+        return [px - plane_j * n[0], py - plane_j * n[1], pz - plane_j * n[2]], [n]
+
+    def _edge_distance2(self, p, face: int) -> float:
+        """Squared distance from `p` to the nearest edge of `face`."""
+        best = math.inf
+        for a, e, inv in zip(self.tri[face].tolist(), self._edges[face].tolist(),
+                             self._inv_length2[face].tolist(), strict=True):
+            w = [p[i] - a[i] for i in range(3)]
+            t = min(max(_dot(w, e) * inv, 0.0), 1.0)
+            r = [w[i] - t * e[i] for i in range(3)]
+            best = min(best, _dot(r, r))
+        return best
 
 
 _COPLANAR_COS = np.cos(np.radians(0.01))
