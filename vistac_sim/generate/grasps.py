@@ -18,6 +18,8 @@ slice by the tip's width at that height, so that no start penetrates.
 
 from __future__ import annotations
 
+import bisect
+import math
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -54,6 +56,12 @@ class OutlineSampler:
         self.section = section
         self.cfg = cfg
         self.p0, self.p1, self.normals, self.cum = boundary_arrays(section)
+        self._edge = tuple(np.ascontiguousarray((self.p1 - self.p0).T))
+        self._p0x, self._p0y = np.ascontiguousarray(self.p0.T)
+        # the same, as Python floats: a draw works on one or two points (NumPy's per-call
+        # overhead would cost more than the arithmetic)
+        self._outline = (self.p0.tolist(), self.p1.tolist(), self.normals.tolist(),
+                         self.cum.tolist())
         self.keep_out = ((section, cfg.hand.tip_radius), *clearance)
         for geom, _ in self.keep_out:
             shapely.prepare(geom)
@@ -82,32 +90,36 @@ class OutlineSampler:
         outline = reach if reach.area >= obj.section.area else obj.section
         return cls(shapely.Polygon(outline.exterior), cfg, ((obj.section, r), *levels))
 
-    def _points(self, rng: np.random.Generator, k: int) -> tuple[np.ndarray, np.ndarray]:
-        s = rng.uniform(0, self.cum[-1], k)
-        seg = np.searchsorted(self.cum, s, side="right").clip(max=len(self.cum) - 1)
-        start = np.where(seg > 0, self.cum[seg - 1], 0.0)
-        t = ((s - start) / (self.cum[seg] - start))[:, None]
-        return self.p0[seg] * (1 - t) + self.p1[seg] * t, self.normals[seg]
+    def _point(self, rng: np.random.Generator) -> tuple[list[float], list[float]]:
+        """A point drawn uniformly along the outline, and the outward normal there."""
+        p0, p1, normals, cum = self._outline
+        s = rng.uniform(0, cum[-1])
+        seg = min(bisect.bisect_right(cum, s), len(cum) - 1)
+        start = cum[seg - 1] if seg > 0 else 0.0
+        t = (s - start) / (cum[seg] - start)
+        a, b = p0[seg], p1[seg]
+        return [a[0] * (1 - t) + b[0] * t, a[1] * (1 - t) + b[1] * t], normals[seg]
 
-    def _approach(self, rng: np.random.Generator, normals: np.ndarray,
-                  spread_deg: float) -> np.ndarray:
-        """Unit directions within `spread_deg` (uniform) of the inward `normals`."""
-        spread = np.radians(spread_deg)
-        ang = rng.uniform(-spread, spread, len(normals))
-        c, s = np.cos(ang), np.sin(ang)
-        inward = -normals
-        return np.stack([c * inward[:, 0] - s * inward[:, 1], s * inward[:, 0] + c * inward[:, 1]],
-                        axis=1)
+    @staticmethod
+    def _turned(rng: np.random.Generator, normal: list[float],
+                spread_deg: float) -> list[float]:
+        """A unit direction within `spread_deg` (uniform) of the inward `normal`."""
+        spread = math.radians(spread_deg)
+        ang = rng.uniform(-spread, spread)
+        c, s = math.cos(ang), math.sin(ang)
+        ix, iy = -normal[0], -normal[1]
+        return [c * ix - s * iy, s * ix + c * iy]
 
-    def finger_axes(self, start: np.ndarray, approach: np.ndarray) -> np.ndarray:
+    def finger_axes(self, start, approach) -> np.ndarray:
         """Top-view axes (LineStrings) of both whole fingers (tip + shaft), each with its front
         cap centre at `start` (2, 2) and pointing along `approach` (2, 2).
 
         A finger's footprint is its segment widened by the tip radius (the widest part).
         """
         h = self.cfg.hand
-        back = start - approach * (2 * h.tip_half_length + h.shaft_length + h.shaft_radius)
-        return shapely.linestrings(np.stack([start, back], axis=1))
+        length = 2 * h.tip_half_length + h.shaft_length + h.shaft_radius
+        return shapely.linestrings([[s, [s[0] - a[0] * length, s[1] - a[1] * length]]
+                                    for s, a in zip(start, approach, strict=True)])
 
     def check(self, local: Grasp) -> None:
         """Check a grasp given in the object frame (yaw 0, at the origin).
@@ -117,7 +129,12 @@ class OutlineSampler:
                 "fingers_overlap".
         """
         h = self.cfg.hand
-        axes = self.finger_axes(local.start(h.tip_radius, h.standoff), local.approach)
+        self._check_axes(local.start(h.tip_radius, h.standoff).tolist(), local.approach.tolist())
+
+    def _check_axes(self, start: list, approach: list) -> None:
+        """`check` for the fingers' start points and axes, (2, 2) each."""
+        h = self.cfg.hand
+        axes = self.finger_axes(start, approach)
         inside = np.zeros(2, bool)
         for geom, width in self.keep_out:
             inside |= shapely.dwithin(geom, axes, width)
@@ -127,25 +144,28 @@ class OutlineSampler:
         if shapely.dwithin(axes[0], axes[1], 2 * h.tip_radius):
             raise RejectedSample("fingers_overlap", "thumb and index would overlap")
 
-    def far_crossing(self, point: np.ndarray,
-                     direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def far_crossing(self, point: list[float],
+                     direction: list[float]) -> tuple[list[float], list[float]]:
         """Where the line from `point` along `direction` last crosses the outline, and the
         outline's outward normal there (the thumb's target on the closing axis).
 
         Raises:
             RejectedSample: "no_opposing_thumb" when the line leaves no outline beyond `point`.
         """
-        e = self.p1 - self.p0
-        w = self.p0 - point
-        denom = direction[0] * e[:, 1] - direction[1] * e[:, 0]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (w[:, 0] * e[:, 1] - w[:, 1] * e[:, 0]) / denom
-            u = (w[:, 0] * direction[1] - w[:, 1] * direction[0]) / denom
-        hit = (np.abs(denom) > 1e-12) & (u >= 0) & (u <= 1) & (t > 1e-9)
+        ex, ey = self._edge
+        dx, dy = direction
+        wx, wy = self._p0x - point[0], self._p0y - point[1]
+        denom = dx * ey - dy * ex
+        ok = np.abs(denom) > 1e-12  # not parallel (no division by zero below)
+        denom = np.where(ok, denom, 1.0)
+        t = (wx * ey - wy * ex) / denom
+        u = (wx * dy - wy * dx) / denom
+        hit = ok & (u >= 0) & (u <= 1) & (t > 1e-9)
         if not hit.any():
             raise RejectedSample("no_opposing_thumb", "the closing axis leaves no far side")
         k = int(np.argmax(np.where(hit, t, -np.inf)))
-        return point + t[k] * direction, self.normals[k]
+        tk = float(t[k])
+        return [point[0] + tk * dx, point[1] + tk * dy], self._outline[2][k]
 
     def sample(self, rng: np.random.Generator) -> Grasp:
         """Draw one grasp in world coordinates.
@@ -155,19 +175,21 @@ class OutlineSampler:
                 "no_opposing_thumb" (the thumb's surface is too far off the closing axis),
                 "fingers_overlap".
         """
-        g = self.cfg.grasp
+        g, h = self.cfg.grasp, self.cfg.hand
         yaw = float(rng.uniform(-np.pi, np.pi))
         xy = rng.uniform(-0.01, 0.01, 2)
-        p_i, n_i = self._points(rng, 1)
-        close = self._approach(rng, n_i, g.closing_spread_deg)[0]  # the index's push
-        p_t, n_t = self.far_crossing(p_i[0], close)
-        off = np.degrees(np.arccos(np.clip(close @ n_t, -1.0, 1.0)))
+        p_i, n_i = self._point(rng)
+        close = self._turned(rng, n_i, g.closing_spread_deg)  # the index's push
+        p_t, n_t = self.far_crossing(p_i, close)
+        off = math.degrees(math.acos(min(max(close[0] * n_t[0] + close[1] * n_t[1], -1.0), 1.0)))
         if off > g.max_push_angle_deg:
             raise RejectedSample("no_opposing_thumb", f"the thumb's surface is {off:.0f} deg off "
                                  f"the closing axis (limit {g.max_push_angle_deg:g})")
-        normals = np.stack([n_i[0], n_t])
-        local = Grasp(xy, yaw, np.stack([p_i[0], p_t]), normals,
-                      self._approach(rng, normals, g.approach_spread_deg),
-                      push=np.stack([close, -close]))
-        self.check(local)
-        return to_world(local)
+        target, normal = [p_i, p_t], [n_i, n_t]
+        approach = [self._turned(rng, n, g.approach_spread_deg) for n in normal]
+        push = [close, [-close[0], -close[1]]]
+        # the start of each tip's front cap (as `Grasp.start`), in the object frame
+        start = [[t[i] + n[i] * h.tip_radius - d[i] * h.standoff for i in range(2)]
+                 for t, n, d in zip(target, normal, push, strict=True)]
+        self._check_axes(start, approach)
+        return to_world(yaw, xy, target, normal, approach, push)

@@ -9,11 +9,10 @@ scene-stage effects (`Grasp.moved`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-
-from vistac_sim.geometry import rot2, unit
 
 
 @dataclass(frozen=True)
@@ -44,9 +43,21 @@ class Grasp:
         return replace(self, **changes)
 
 
-def to_world(g: Grasp) -> Grasp:
-    """Turn a grasp drawn in the object frame into world coordinates (rotate by yaw, shift)."""
-    r = rot2(g.object_yaw)
-    return g.moved(target=g.target @ r.T + g.object_xy, normal=unit(g.normal @ r.T),
-                   approach=unit(g.approach @ r.T),
-                   push=None if g.push is None else unit(g.push @ r.T))
+def to_world(yaw: float, xy: np.ndarray, target: list, normal: list, approach: list,
+             push: list) -> Grasp:
+    """The grasp of an object at `xy`, turned by `yaw`, from its targets, outline normals,
+    approach and push directions drawn in the object's frame ((2, 2) nested lists each): points
+    are rotated and shifted, directions rotated and normalised. Python floats throughout (a grasp
+    is a handful of numbers)."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    x0, y0 = float(xy[0]), float(xy[1])
+
+    def turned(v: list[float]) -> list[float]:
+        x, y = v[0] * c - v[1] * s, v[0] * s + v[1] * c
+        length = math.sqrt(x * x + y * y)
+        return [x / length, y / length] if length > 0 else [0.0, 0.0]
+
+    return Grasp(np.asarray(xy), yaw,
+                 np.array([[v[0] * c - v[1] * s + x0, v[0] * s + v[1] * c + y0] for v in target]),
+                 np.array([turned(v) for v in normal]), np.array([turned(v) for v in approach]),
+                 push=np.array([turned(v) for v in push]))
