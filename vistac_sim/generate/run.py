@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import time
-from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -91,20 +91,31 @@ def _screen(specs: list[ObjectSpec], cfg: GenerateCfg, workers: int, progress: b
     return (*screened, versions)
 
 
-def _run_local(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[Chunk],
-               workers: int) -> Iterator[int]:
-    """Make and commit the `todo` chunks in this process or a pool; yields chunk sizes."""
-    if workers == 1 or len(todo) <= 1:
+@contextmanager
+def _chunk_runner(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[Chunk],
+                  workers: int, engine: EngineCfg):
+    """Where the `todo` chunks run: Ray tasks, this process, or a pool of worker processes.
+
+    Yields the sizes of the chunks as they commit, and a function that runs the final merge
+    (`worker.merge`'s arguments) in the same place: in a pool, one of its workers merges (it has
+    imported pyarrow and pandas already; this process has not).
+    """
+    if engine.engine == "ray":
+        from vistac_sim.generate.on_ray import run_chunks_on_ray
+
+        yield run_chunks_on_ray(cfg, specs, out, todo, engine, num_cpus=workers), shards.finalize
+    elif workers == 1 or len(todo) <= 1:
         from vistac_sim.generate import worker
 
         worker.init_worker(cfg, specs, str(out))
         try:
-            yield from (worker.run_chunk(c) for c in todo)
+            yield (worker.run_chunk(c) for c in todo), worker.merge
         finally:
             worker.close_worker()
     else:
         with worker_pool(workers, cfg, specs, str(out)) as pool:
-            yield from pool.imap_unordered(in_worker("run_task"), plan_tasks(todo, workers))
+            yield (pool.imap_unordered(in_worker("run_task"), plan_tasks(todo, workers)),
+                   lambda *args: pool.apply(in_worker("merge"), args))
 
 
 # --------------------------------------------------------------------------------- the run
@@ -145,32 +156,28 @@ def _generate(cfg: GenerateCfg, out: Path, workers: int, resume: bool, progress:
     workers = max(1, min(workers, len(todo)))  # no idle processes
     bar = tqdm(total=cfg.n, initial=sum(len(c.config_ids) for c in chunks if c.index in done),
                unit="cfg", desc="generate", disable=not progress, smoothing=0.1)
-    if engine.engine == "ray":
-        from vistac_sim.generate.on_ray import run_chunks_on_ray
-
-        committed = run_chunks_on_ray(cfg, specs, out, todo, engine, num_cpus=workers)
-    else:
-        committed = _run_local(cfg, specs, out, todo, workers)
-    for count in committed:
-        bar.update(count)
-    bar.close()
-    manifest = {
-        "generator": "vistac generate",
-        "config": cfg.to_dict(),
-        "seed": cfg.seed,
-        "versions": versions,
-        "effects": build_pipeline(cfg.effects).describe(),
-        "objects": [s.__dict__ for s in specs],
-        "skipped_meshes": skipped,
-        "skipped_objects": unusable,
-        "mesh_repairs": repairs,
-        "render": {"image_size": cfg.render.image_size, "view_extent_m": cfg.render.view_extent,
-                   "px_per_m": cfg.render.image_size / cfg.render.view_extent,
-                   "camera_xy": [0.0, 0.0]},
-        "workers": workers,
-        "engine": engine.engine,
-        "resumed": bool(resume),
-        "wall_time_s": round(time.perf_counter() - t0, 3),
-    }
-    return shards.finalize(out, len(chunks), cfg.n, manifest, cfg.split.by, cfg.split.fractions,
-                            cfg.seed)
+    with _chunk_runner(cfg, specs, out, todo, workers, engine) as (committed, merge):
+        for count in committed:
+            bar.update(count)
+        bar.close()
+        manifest = {
+            "generator": "vistac generate",
+            "config": cfg.to_dict(),
+            "seed": cfg.seed,
+            "versions": versions,
+            "effects": build_pipeline(cfg.effects).describe(),
+            "objects": [s.__dict__ for s in specs],
+            "skipped_meshes": skipped,
+            "skipped_objects": unusable,
+            "mesh_repairs": repairs,
+            "render": {"image_size": cfg.render.image_size,
+                       "view_extent_m": cfg.render.view_extent,
+                       "px_per_m": cfg.render.image_size / cfg.render.view_extent,
+                       "camera_xy": [0.0, 0.0]},
+            "workers": workers,
+            "engine": engine.engine,
+            "resumed": bool(resume),
+            "wall_time_s": round(time.perf_counter() - t0, 3),
+        }
+        return merge(out, len(chunks), cfg.n, manifest, cfg.split.by, cfg.split.fractions,
+                     cfg.seed)
