@@ -25,6 +25,7 @@ from vistac.dataset.schema import (
     MANIFEST,
     SPLITS,
     press_row,
+    press_rows,
     unit_labels,
 )
 from vistac.dataset.splits import SplitCfg, assign_splits
@@ -41,6 +42,7 @@ __all__ = [
     "atomic_write_json",
     "open_dataset",
     "press_row",
+    "press_rows",
     "read_manifest",
     "unit_labels",
     "write_manifest",

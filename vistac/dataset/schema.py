@@ -66,12 +66,23 @@ def unit_labels(forces: np.ndarray) -> np.ndarray:
     return np.where(n > 0, yz / np.where(n > 0, n, 1.0), np.array([0.0, -1.0]))
 
 
+PRESS_COLUMNS = ["config_id", "repeat", *(c for f in FINGERS for c in force_columns(f)),
+                 *LABEL_COLUMNS]
+"""The columns of `presses.parquet`, in order."""
+
+
+def press_rows(config_id: int, forces: np.ndarray, labels: np.ndarray) -> list[dict]:
+    """The `presses.parquet` rows of a configuration's repeats: ids, the (2, 3) force and the
+    (2, 2) unit labels per finger of each repeat (`forces` (R, 2, 3), `labels` (R, 2, 2))."""
+    forces, labels = np.asarray(forces, float), np.asarray(labels, float)
+    values = np.concatenate([forces.reshape(len(forces), -1), labels.reshape(len(labels), -1)],
+                            axis=1).tolist()
+    return [dict(zip(PRESS_COLUMNS, [config_id, repeat, *v], strict=True))
+            for repeat, v in enumerate(values)]
+
+
 def press_row(config_id: int, repeat: int, force: np.ndarray, label: np.ndarray) -> dict:
-    """One `presses.parquet` row: ids, the (2, 3) force and the (2, 2) unit labels per finger."""
-    row = {"config_id": config_id, "repeat": repeat}
-    force, label = np.asarray(force, float).tolist(), np.asarray(label, float).tolist()
-    for k, f in enumerate(FINGERS):
-        row |= dict(zip(force_columns(f), force[k], strict=True))
-    for k, f in enumerate(FINGERS):
-        row |= dict(zip(label_columns(f), label[k], strict=True))
+    """One `presses.parquet` row (`press_rows` of one repeat, numbered `repeat`)."""
+    row = press_rows(config_id, np.asarray(force)[None], np.asarray(label)[None])[0]
+    row["repeat"] = repeat
     return row

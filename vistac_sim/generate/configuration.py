@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vistac.dataset import FINGERS, press_row, unit_labels
+from vistac.dataset import FINGERS, press_rows, unit_labels
 from vistac.dataset.schema import box_columns, clean_force_columns, normal_columns
 from vistac_sim.effects.registry import Pipeline
 from vistac_sim.generate.config import GenerateCfg
@@ -123,7 +123,7 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     row |= view_cols
     return Configuration(
         row=row,
-        presses=[press_row(config_id, k, forces[k], labels[k]) for k in range(cfg.repeats)],
+        presses=press_rows(config_id, forces, labels),
         png=png,
         recording=recording,
     )
@@ -145,6 +145,13 @@ def _solve_repeat(scene: ObjectScene, pipeline: Pipeline, grasp: Grasp,
     return None
 
 
+_FINGER_COLUMNS = {f: [f"target_{f}_x", f"target_{f}_y", f"approach_{f}_x", f"approach_{f}_y",
+                       f"push_{f}_x", f"push_{f}_y", f"tip_{f}_x", f"tip_{f}_y",
+                       f"penetration_{f}", *box_columns(f), *clean_force_columns(f),
+                       *normal_columns(f)] for f in FINGERS}
+"""A configuration's per-finger columns, in order (made once: a row is built per configuration)."""
+
+
 def _config_row(config_id, obj: SceneObject, grasp: Grasp, res: PressResult, clean, normal,
                 boxes, cfg: GenerateCfg) -> dict:
     row = {
@@ -159,15 +166,10 @@ def _config_row(config_id, obj: SceneObject, grasp: Grasp, res: PressResult, cle
         "camera_y": 0.0,
         "px_per_m": px_per_m(cfg.render),
     }
-    for k, f in enumerate(FINGERS):
-        row |= {
-            f"target_{f}_x": grasp.target[k, 0], f"target_{f}_y": grasp.target[k, 1],
-            f"approach_{f}_x": grasp.approach[k, 0], f"approach_{f}_y": grasp.approach[k, 1],
-            f"push_{f}_x": grasp.push_dirs[k, 0], f"push_{f}_y": grasp.push_dirs[k, 1],
-            f"tip_{f}_x": res.tip[k, 0], f"tip_{f}_y": res.tip[k, 1],
-            f"penetration_{f}": res.penetration[k],
-        }
-        row |= dict(zip(box_columns(f), boxes[k], strict=True))
-        row |= dict(zip(clean_force_columns(f), clean[k], strict=True))
-        row |= dict(zip(normal_columns(f), normal[k], strict=True))
-    return {k: (float(v) if isinstance(v, np.floating) else v) for k, v in row.items()}
+    values = zip(grasp.target.tolist(), grasp.approach.tolist(), grasp.push_dirs.tolist(),
+                 res.tip.tolist(), res.penetration.tolist(), np.asarray(boxes).tolist(),
+                 np.asarray(clean).tolist(), np.asarray(normal).tolist(), strict=True)
+    for f, (target, approach, push, tip, pen, box, force, n) in zip(FINGERS, values, strict=True):
+        row.update(zip(_FINGER_COLUMNS[f], [*target, *approach, *push, *tip[:2], pen, *box,
+                                            *force, *n], strict=True))
+    return row

@@ -22,6 +22,7 @@ that MuJoCo silently reset can reach a dataset.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -122,8 +123,11 @@ class Press:
     def _read(self) -> PressResult:
         m, d, ids, phys = self.model, self.data, self.ids, self.cfg.physics
         ncon = d.ncon
-        g1 = d.contact.geom1[:ncon].tolist()
-        g2 = d.contact.geom2[:ncon].tolist()
+        contact = d.contact  # each attribute read makes a view: read each once
+        g1 = contact.geom1[:ncon].tolist()
+        g2 = contact.geom2[:ncon].tolist()
+        dist = contact.dist[:ncon].tolist()
+        frame, pos = contact.frame[:ncon], contact.pos[:ncon]
         force_w, force_c, tip = (np.zeros((2, 3)) for _ in range(3))
         rot = np.zeros((2, 3, 3))
         pen = np.zeros(2)
@@ -135,19 +139,19 @@ class Press:
             pad = [c for c in range(ncon) if g1[c] == pad_id or g2[c] == pad_id]
             if not pad or d.qpos[ids.qpos[f]] >= self._limit - 1e-6:
                 raise RejectedSample("no_contact", f"{f} pad reached no surface")
-            speed = float(np.linalg.norm(d.qvel[ids.tip_dofs[f]]))
+            speed = math.sqrt(sum(v * v for v in d.qvel[ids.tip_dofs[f]].tolist()))
             if speed > phys.max_speed:
                 raise RejectedSample("not_settled", f"{f} tip still moves at {speed:.2e} m/s")
-            pen[k] = max(0.0, -min(d.contact.dist[c] for c in pad))
+            pen[k] = max(0.0, -min(dist[c] for c in pad))
             if pen[k] > phys.max_penetration:
                 raise RejectedSample("penetration", f"{f} pad {pen[k] * 1e3:.2f} mm deep")
             rows = np.zeros((len(pad), 4))  # contact xyz, normal force
+            rows[:, :3] = pos[pad]
             for j, c in enumerate(pad):
                 mujoco.mj_contactForce(m, d, c, self._f6)
                 # mj_contactForce gives the force of geom1 on geom2 in the contact frame.
-                f_on_geom2 = d.contact.frame[c].reshape(3, 3).T @ self._f6[:3]
+                f_on_geom2 = frame[c].reshape(3, 3).T @ self._f6[:3]
                 force_w[k] += f_on_geom2 if g2[c] == pad_id else -f_on_geom2
-                rows[j, :3] = d.contact.pos[c]
                 rows[j, 3] = self._f6[0]
             pad_contacts.append(rows)
             rot[k] = d.site_xmat[ids.site[f]].reshape(3, 3)
