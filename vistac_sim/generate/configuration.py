@@ -64,8 +64,11 @@ class ConfigStreams:
 
 
 def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: GenerateCfg,
-                       pipeline: Pipeline) -> Configuration:
+                       pipeline: Pipeline, first: int | None = None) -> Configuration:
     """Draw, press, check, label and render configuration `config_id`.
+
+    It uses object `first` of the library: the plan's `object_index(seed, config_id,
+    len(scenes.specs))`, which a chunk knows already (computed here if None).
 
     An object that gives no valid grasp in `max_redraws` draws hands the configuration on to the
     next object of the library (in a fixed order, so the result stays a pure function of the
@@ -77,7 +80,8 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     """
     rng = ConfigStreams(seed, config_id)
     n_obj = len(scenes.specs)
-    first = object_index(seed, config_id, n_obj)
+    if first is None:
+        first = object_index(seed, config_id, n_obj)
     failed: dict[str, Counter] = {}
     for j in range(n_obj * FALLBACK_ROUNDS):
         scene = scenes.get((first + j) % n_obj)

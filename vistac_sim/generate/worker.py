@@ -63,7 +63,8 @@ def screen_object(job: tuple[int, ObjectSpec, GenerateCfg]
 def make_chunk(chunk: Chunk, cfg: GenerateCfg, scenes: SceneCache,
                pipeline: Pipeline) -> list[Configuration]:
     """Every configuration of a chunk, in memory: pure and deterministic given `cfg.seed`."""
-    return [make_configuration(cid, cfg.seed, scenes, cfg, pipeline) for cid in chunk.config_ids]
+    return [make_configuration(cid, cfg.seed, scenes, cfg, pipeline, chunk.object_index)
+            for cid in chunk.config_ids]
 
 
 def commit_chunk(out: Path, chunk_index: int, made: list[Configuration]) -> int:
