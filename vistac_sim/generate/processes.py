@@ -51,6 +51,13 @@ def worker_pool(workers: int, *initargs):
         yield processes
 
 
+def in_new_worker(fn, *args):
+    """`fn(*args)` (a picklable, module-level function) in one new worker forked from the fork
+    server (so with its imports), which ends with the call; returns its result."""
+    with worker_context().Pool(1) as pool:
+        return pool.apply(fn, args)
+
+
 def stop_fork_server() -> None:
     """Stop this process's fork server, if one runs, and wait for it: a run leaves no process
     behind, and its workers' CPU time counts among this process's children (`getrusage`).

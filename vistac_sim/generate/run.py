@@ -14,8 +14,9 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import time
-from contextlib import contextmanager
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +28,12 @@ from vistac_sim.effects import build_pipeline
 from vistac_sim.generate import shards
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.objects_report import screen_objects
-from vistac_sim.generate.processes import in_worker, stop_fork_server, worker_pool
+from vistac_sim.generate.processes import (
+    in_new_worker,
+    in_worker,
+    stop_fork_server,
+    worker_pool,
+)
 from vistac_sim.objects.specs import ObjectSpec, object_index, procedural_library
 
 VERSIONED = ("mujoco", "numpy", "trimesh")  # what decides the bytes of a dataset
@@ -91,31 +97,39 @@ def _screen(specs: list[ObjectSpec], cfg: GenerateCfg, workers: int, progress: b
     return (*screened, versions)
 
 
-@contextmanager
 def _chunk_runner(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[Chunk],
-                  workers: int, engine: EngineCfg):
-    """Where the `todo` chunks run: Ray tasks, this process, or a pool of worker processes.
+                  workers: int, engine: EngineCfg) -> tuple[Iterator[int], Callable[..., dict]]:
+    """Where the `todo` chunks run (Ray tasks, this process, or a pool of worker processes) and
+    the final merge after them (`shards.finalize`).
 
-    Yields the sizes of the chunks as they commit, and a function that runs the final merge
-    (`worker.merge`'s arguments) in the same place: in a pool, one of its workers merges (it has
-    imported pyarrow and pandas already; this process has not).
+    Returns the sizes of the chunks as they commit (the workers stop when it is exhausted), and
+    the merge: after a pool, it runs in a new worker forked from the fork server, which imported
+    pyarrow and pandas already (this process has not), and ends with the merge.
     """
     if engine.engine == "ray":
         from vistac_sim.generate.on_ray import run_chunks_on_ray
 
-        yield run_chunks_on_ray(cfg, specs, out, todo, engine, num_cpus=workers), shards.finalize
-    elif workers == 1 or len(todo) <= 1:
-        from vistac_sim.generate import worker
+        return run_chunks_on_ray(cfg, specs, out, todo, engine, num_cpus=workers), shards.finalize
+    if workers == 1 or len(todo) <= 1:
+        return _run_here(cfg, specs, out, todo), shards.finalize
+    return _run_in_pool(cfg, specs, out, todo, workers), partial(in_new_worker, shards.finalize)
 
-        worker.init_worker(cfg, specs, str(out))
-        try:
-            yield (worker.run_chunk(c) for c in todo), worker.merge
-        finally:
-            worker.close_worker()
-    else:
-        with worker_pool(workers, cfg, specs, str(out)) as pool:
-            yield (pool.imap_unordered(in_worker("run_task"), plan_tasks(todo, workers)),
-                   lambda *args: pool.apply(in_worker("merge"), args))
+
+def _run_here(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path,
+              todo: list[Chunk]) -> Iterator[int]:
+    from vistac_sim.generate import worker
+
+    worker.init_worker(cfg, specs, str(out))
+    try:
+        yield from (worker.run_chunk(c) for c in todo)
+    finally:
+        worker.close_worker()
+
+
+def _run_in_pool(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[Chunk],
+                 workers: int) -> Iterator[int]:
+    with worker_pool(workers, cfg, specs, str(out)) as pool:
+        yield from pool.imap_unordered(in_worker("run_task"), plan_tasks(todo, workers))
 
 
 # --------------------------------------------------------------------------------- the run
@@ -156,28 +170,26 @@ def _generate(cfg: GenerateCfg, out: Path, workers: int, resume: bool, progress:
     workers = max(1, min(workers, len(todo)))  # no idle processes
     bar = tqdm(total=cfg.n, initial=sum(len(c.config_ids) for c in chunks if c.index in done),
                unit="cfg", desc="generate", disable=not progress, smoothing=0.1)
-    with _chunk_runner(cfg, specs, out, todo, workers, engine) as (committed, merge):
-        for count in committed:
-            bar.update(count)
-        bar.close()
-        manifest = {
-            "generator": "vistac generate",
-            "config": cfg.to_dict(),
-            "seed": cfg.seed,
-            "versions": versions,
-            "effects": build_pipeline(cfg.effects).describe(),
-            "objects": [s.__dict__ for s in specs],
-            "skipped_meshes": skipped,
-            "skipped_objects": unusable,
-            "mesh_repairs": repairs,
-            "render": {"image_size": cfg.render.image_size,
-                       "view_extent_m": cfg.render.view_extent,
-                       "px_per_m": cfg.render.image_size / cfg.render.view_extent,
-                       "camera_xy": [0.0, 0.0]},
-            "workers": workers,
-            "engine": engine.engine,
-            "resumed": bool(resume),
-            "wall_time_s": round(time.perf_counter() - t0, 3),
-        }
-        return merge(out, len(chunks), cfg.n, manifest, cfg.split.by, cfg.split.fractions,
-                     cfg.seed)
+    committed, merge = _chunk_runner(cfg, specs, out, todo, workers, engine)
+    for count in committed:
+        bar.update(count)
+    bar.close()
+    manifest = {
+        "generator": "vistac generate",
+        "config": cfg.to_dict(),
+        "seed": cfg.seed,
+        "versions": versions,
+        "effects": build_pipeline(cfg.effects).describe(),
+        "objects": [s.__dict__ for s in specs],
+        "skipped_meshes": skipped,
+        "skipped_objects": unusable,
+        "mesh_repairs": repairs,
+        "render": {"image_size": cfg.render.image_size, "view_extent_m": cfg.render.view_extent,
+                   "px_per_m": cfg.render.image_size / cfg.render.view_extent,
+                   "camera_xy": [0.0, 0.0]},
+        "workers": workers,
+        "engine": engine.engine,
+        "resumed": bool(resume),
+        "wall_time_s": round(time.perf_counter() - t0, 3),
+    }
+    return merge(out, len(chunks), cfg.n, manifest, cfg.split.by, cfg.split.fractions, cfg.seed)

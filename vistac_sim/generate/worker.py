@@ -108,13 +108,6 @@ def close_worker() -> None:
         _WORKER.pop("scenes").close()
 
 
-def merge(*args) -> dict:
-    """`shards.finalize(*args)` in this worker, its scenes closed first (their memory goes to the
-    merge)."""
-    close_worker()
-    return shards.finalize(*args)
-
-
 def run_task(task: list[Chunk]) -> int:
     """Make and commit a task's chunks (consecutive chunks of one object)."""
     return sum(run_chunk(c) for c in task)
