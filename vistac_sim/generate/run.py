@@ -137,6 +137,9 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
              progress: bool = True, engine: EngineCfg | None = None) -> dict:
     """Generate (or resume) a dataset of `cfg.n` configurations in `out`; returns the manifest.
 
+    From a script, call it under ``if __name__ == "__main__":``: the workers' fork server
+    imports the script's main module, as every `multiprocessing` start method but "fork" does.
+
     Args:
         cfg: the full generation config (its seed included).
         out: dataset folder to create (or to resume).
