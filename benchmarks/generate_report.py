@@ -79,7 +79,7 @@ def plot(now: dict, before: dict | None, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     runs = [("before", before), ("now", now)] if before else [("now", now)]
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5))
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 6.5))
     keys = list(now["breakdown_ms_per_sample"]["generate"])[1:]
     bars = [(f"generate {n}", r["breakdown_ms_per_sample"]["generate"]) for n, r in runs]
     bars += [(f"bare {n}", r["breakdown_ms_per_sample"]["bare"]) for n, r in runs]
@@ -92,7 +92,7 @@ def plot(now: dict, before: dict | None, path: Path) -> None:
             left += v
     ax1.set_yticks(range(len(bars)), [b for b, _ in bars])
     ax1.set_xlabel("ms per configuration (one process, cProfile)")
-    ax1.legend(fontsize=6, loc="lower right")
+    ax1.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=3)  # below
     for name, r in runs:
         ns = [s["n"] for s in r["scaling"]]
         ax2.plot(ns, [s["ms_per_config"] for s in r["scaling"]], "o-", label=f"wall ms {name}")
