@@ -1,14 +1,8 @@
-"""Small vectorised geometry helpers: rotations in the plane, unit vectors, angles."""
+"""Small vectorised geometry helpers: yaw quaternions, unit vectors, angles."""
 
 from __future__ import annotations
 
 import numpy as np
-
-
-def rot2(yaw: float) -> np.ndarray:
-    """2x2 rotation by `yaw` radians (counter-clockwise seen from above)."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s], [s, c]])
 
 
 def yaw_quat(yaw: float) -> np.ndarray:

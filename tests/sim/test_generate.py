@@ -113,13 +113,15 @@ def test_the_final_merge_holds_one_bucket_of_ids_at_a_time(tmp_path, small_datas
 
 
 def test_the_driver_imports_no_simulator(tmp_path):
-    """With worker processes, `vistac generate` itself plans and writes tables only: MuJoCo,
-    trimesh and SciPy are imported by the workers' fork server, not by the `vistac` process."""
+    """With worker processes, `vistac generate` itself only plans: MuJoCo, trimesh, SciPy and
+    pandas (the final merge's) are imported by the workers' fork server, not by the `vistac`
+    process."""
     code = ("import sys; from vistac.cli import main; "
             f"rc = main(['generate', '--out', {str(tmp_path / 'd')!r}, '--n', '4', '--workers', "
             "'2', '--image-size', '32', '--n-objects', '2', '--repeats', '1', '--chunk-size', "
             "'2', '--no-progress']); "
-            "print(rc, sorted(m for m in ('mujoco', 'trimesh', 'scipy') if m in sys.modules))")
+            "print(rc, sorted(m for m in ('mujoco', 'trimesh', 'scipy', 'pandas') "
+            "if m in sys.modules))")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           check=True)
     assert done.stdout.strip().splitlines()[-1] == "0 []", done.stdout + done.stderr
@@ -219,3 +221,15 @@ def test_tasks_hold_one_object_and_cover_every_chunk_once():
         limit = -(-3000 // (workers * 8))
         assert all(sum(len(c.config_ids) for c in t[:-1]) < limit for t in tasks)
     assert len(plan_tasks(chunks, 2)) < len(chunks)  # chunks of an object go together
+
+
+def test_a_merge_worker_that_dies_is_an_error_not_a_hang():
+    """The final merge runs in a worker of its own: if it is killed (out of memory), the run
+    fails with a message instead of waiting forever."""
+    from vistac_sim.generate import processes
+
+    try:
+        with pytest.raises(RuntimeError, match="_exit: its worker process died"):
+            processes.in_new_worker(os._exit, 3)
+    finally:
+        processes.stop_fork_server()

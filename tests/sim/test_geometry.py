@@ -62,13 +62,20 @@ def test_triangle_index_fast_path_agrees_with_the_full_search():
     pts = surface + rng.normal(scale=1e-3, size=surface.shape)  # contacts lie near the surface
     ref, dist_ref, _ = trimesh.proximity.closest_point(mesh, pts)
     fast_used = 0
+    everything = np.arange(len(mesh.faces))
     for p, r, dr in zip(pts, ref, dist_ref, strict=True):
         q, normals = index.closest(p, radius=0.05)
-        fast_used += index._inside_face(p, np.arange(len(mesh.faces))) is not None
         assert np.linalg.norm(q - p) == pytest.approx(dr, abs=1e-9)
         np.testing.assert_allclose(q, r, atol=1e-7)
         assert len(normals) >= 1
-    assert fast_used > 150  # the fast path is the common case (179 of 300 here)
+        fast = index._inside_face(p.tolist(), everything)
+        if fast is not None:  # the same point and face as the full search
+            fast_used += 1
+            full = closest_point_on_triangles(p, index.tri)
+            dist = np.linalg.norm(full - p, axis=1)
+            np.testing.assert_allclose(fast[0], full[np.argmin(dist)], atol=1e-12)
+            np.testing.assert_allclose(fast[1], index.face_normals[dist <= dist.min() + 1e-9])
+    assert fast_used > 280  # the fast path is the common case (299 of 300 here)
 
 
 def test_triangle_index_fast_path_sees_past_a_neighbouring_plane():
@@ -89,3 +96,35 @@ def test_triangle_index_fast_path_sees_past_a_neighbouring_plane():
         np.testing.assert_allclose(fast[1], [[1.0, 0.0, 0.0]], atol=1e-12)
     # just past the edge the closest point is on it: the fast path declines
     assert index._inside_face(np.array([0.505, 0.501, 0.0]), np.arange(len(mesh.faces))) is None
+
+
+def test_triangle_index_fast_path_declines_when_a_neighbour_is_truly_closer():
+    """A low step on a floor: the point projects inside the floor, but the step's edge is closer
+    than the floor; the fast path must decline and the full search find the step."""
+    floor = [[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, 0.0]]
+    step = [[0.5, -0.1, 0.0], [0.5, 0.1, 0.0], [0.5, 0.0, 0.001]]  # a wall facing +x, 1 mm high
+    index = TriangleIndex(np.array(floor + step), np.array([[0, 1, 2], [3, 4, 5]]))
+    p = np.array([0.5005, 0.0, 0.002])  # 2 mm above the floor, 1.1 mm from the step's top
+    assert index._inside_face(p.tolist(), np.arange(2)) is None
+    q, normals = index.closest(p, radius=1.0)
+    assert np.linalg.norm(q - p) < 0.0015
+    assert abs(abs(normals[0][0]) - 1.0) < 1e-12  # the step's normal (+-x), not the floor's
+
+
+def test_surface_normals_of_a_degenerate_face_follow_the_pad():
+    """A face with no area has no normal of its own: the normal points from the mesh point to
+    the pad, as on an edge (never a zero vector)."""
+    from vistac_sim.physics.normals import surface_normals
+    from vistac_sim.physics.press import PressResult
+    from vistac_sim.scene.grasp import Grasp
+
+    line = np.array([[0.0, -0.01, 0.0], [0.0, 0.0, 0.0], [0.0, 0.01, 0.0]])  # collinear
+    index = TriangleIndex(line, np.array([[0, 1, 2]]))
+    approach = np.array([[-1.0, 0.0], [-1.0, 0.0]])
+    grasp = Grasp(np.zeros(2), 0.0, np.zeros((2, 2)), -approach, approach)
+    tip = np.array([[0.003, 0.0, 0.0], [0.003, 0.0, 0.0]])
+    contacts = (np.array([[0.001, 0.0, 0.0, 1.0]]), np.array([[0.001, 0.0, 0.0, 1.0]]))
+    res = PressResult(np.zeros((2, 3)), np.zeros((2, 3)), np.tile(np.eye(3), (2, 1, 1)), tip,
+                      np.zeros(2), contacts)
+    normals = surface_normals(index, grasp, res, reach=0.002)
+    np.testing.assert_allclose(normals, [[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]], atol=1e-12)

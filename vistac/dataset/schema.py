@@ -75,6 +75,9 @@ def press_rows(config_id: int, forces: np.ndarray, labels: np.ndarray) -> list[d
     """The `presses.parquet` rows of a configuration's repeats: ids, the (2, 3) force and the
     (2, 2) unit labels per finger of each repeat (`forces` (R, 2, 3), `labels` (R, 2, 2))."""
     forces, labels = np.asarray(forces, float), np.asarray(labels, float)
+    if forces.shape[1:] != (len(FINGERS), 3) or labels.shape != (*forces.shape[:-1], 2):
+        raise ValueError(f"press_rows: forces {forces.shape} and labels {labels.shape} are not "
+                         "(R, 2, 3) and (R, 2, 2)")
     values = np.concatenate([forces.reshape(len(forces), -1), labels.reshape(len(labels), -1)],
                             axis=1).tolist()
     return [dict(zip(PRESS_COLUMNS, [config_id, repeat, *v], strict=True))

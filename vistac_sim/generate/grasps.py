@@ -55,13 +55,14 @@ class OutlineSampler:
         """
         self.section = section
         self.cfg = cfg
-        self.p0, self.p1, self.normals, self.cum = boundary_arrays(section)
-        self._edge = tuple(np.ascontiguousarray((self.p1 - self.p0).T))
-        self._p0x, self._p0y = np.ascontiguousarray(self.p0.T)
-        # the same, as Python floats: a draw works on one or two points (NumPy's per-call
-        # overhead would cost more than the arithmetic)
-        self._outline = (self.p0.tolist(), self.p1.tolist(), self.normals.tolist(),
-                         self.cum.tolist())
+        p0, p1, normals, cum = boundary_arrays(section)
+        # the outline's segments as columns, for the far crossing (vectorised over segments)
+        self._edge = tuple(np.ascontiguousarray((p1 - p0).T))
+        self._p0x, self._p0y = np.ascontiguousarray(p0.T)
+        # and as Python floats (immutable: shared by every draw): a draw works on one or two
+        # points, where NumPy's per-call overhead would cost more than the arithmetic
+        self._outline = tuple(tuple(map(tuple, a.tolist())) for a in (p0, p1, normals)) + (
+            tuple(cum.tolist()),)
         self.keep_out = ((section, cfg.hand.tip_radius), *clearance)
         for geom, _ in self.keep_out:
             shapely.prepare(geom)
@@ -90,7 +91,7 @@ class OutlineSampler:
         outline = reach if reach.area >= obj.section.area else obj.section
         return cls(shapely.Polygon(outline.exterior), cfg, ((obj.section, r), *levels))
 
-    def _point(self, rng: np.random.Generator) -> tuple[list[float], list[float]]:
+    def _point(self, rng: np.random.Generator) -> tuple[list[float], tuple[float, ...]]:
         """A point drawn uniformly along the outline, and the outward normal there."""
         p0, p1, normals, cum = self._outline
         s = rng.uniform(0, cum[-1])
@@ -101,7 +102,7 @@ class OutlineSampler:
         return [a[0] * (1 - t) + b[0] * t, a[1] * (1 - t) + b[1] * t], normals[seg]
 
     @staticmethod
-    def _turned(rng: np.random.Generator, normal: list[float],
+    def _turned(rng: np.random.Generator, normal,
                 spread_deg: float) -> list[float]:
         """A unit direction within `spread_deg` (uniform) of the inward `normal`."""
         spread = math.radians(spread_deg)
@@ -145,7 +146,7 @@ class OutlineSampler:
             raise RejectedSample("fingers_overlap", "thumb and index would overlap")
 
     def far_crossing(self, point: list[float],
-                     direction: list[float]) -> tuple[list[float], list[float]]:
+                     direction: list[float]) -> tuple[list[float], tuple[float, ...]]:
         """Where the line from `point` along `direction` last crosses the outline, and the
         outline's outward normal there (the thumb's target on the closing axis).
 

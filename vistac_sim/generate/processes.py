@@ -53,9 +53,20 @@ def worker_pool(workers: int, *initargs):
 
 def in_new_worker(fn, *args):
     """`fn(*args)` (a picklable, module-level function) in one new worker forked from the fork
-    server (so with its imports), which ends with the call; returns its result."""
-    with worker_context().Pool(1) as pool:
-        return pool.apply(fn, args)
+    server (so with its imports), which ends with the call; returns its result.
+
+    Raises:
+        RuntimeError: when the worker dies before it answers (killed, out of memory).
+    """
+    from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
+
+    with ProcessPoolExecutor(1, mp_context=worker_context()) as pool:
+        try:
+            return pool.submit(fn, *args).result()
+        except BrokenProcessPool as exc:
+            raise RuntimeError(f"{fn.__name__}: its worker process died before it finished "
+                               "(killed or out of memory)") from exc
 
 
 def stop_fork_server() -> None:

@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator
+from contextlib import closing
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -98,13 +99,14 @@ def _screen(specs: list[ObjectSpec], cfg: GenerateCfg, workers: int, progress: b
 
 
 def _chunk_runner(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[Chunk],
-                  workers: int, engine: EngineCfg) -> tuple[Iterator[int], Callable[..., dict]]:
+                  workers: int, engine: EngineCfg) -> tuple[Generator[int], Callable[..., dict]]:
     """Where the `todo` chunks run (Ray tasks, this process, or a pool of worker processes) and
     the final merge after them (`shards.finalize`).
 
-    Returns the sizes of the chunks as they commit (the workers stop when it is exhausted), and
-    the merge: after a pool, it runs in a new worker forked from the fork server, which imported
-    pyarrow and pandas already (this process has not), and ends with the merge.
+    Returns a generator of the number of configurations committed, as chunks (or a pool's
+    tasks) commit (its workers stop when it is exhausted or closed), and the merge: after a
+    pool, it runs in a new worker forked from the fork server, which imported pyarrow and pandas
+    already (this process has not) and ends with the merge; otherwise in this process.
     """
     if engine.engine == "ray":
         from vistac_sim.generate.on_ray import run_chunks_on_ray
@@ -116,7 +118,7 @@ def _chunk_runner(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: li
 
 
 def _run_here(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path,
-              todo: list[Chunk]) -> Iterator[int]:
+              todo: list[Chunk]) -> Generator[int]:
     from vistac_sim.generate import worker
 
     worker.init_worker(cfg, specs, str(out))
@@ -127,7 +129,7 @@ def _run_here(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path,
 
 
 def _run_in_pool(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[Chunk],
-                 workers: int) -> Iterator[int]:
+                 workers: int) -> Generator[int]:
     with worker_pool(workers, cfg, specs, str(out)) as pool:
         yield from pool.imap_unordered(in_worker("run_task"), plan_tasks(todo, workers))
 
@@ -174,8 +176,9 @@ def _generate(cfg: GenerateCfg, out: Path, workers: int, resume: bool, progress:
     bar = tqdm(total=cfg.n, initial=sum(len(c.config_ids) for c in chunks if c.index in done),
                unit="cfg", desc="generate", disable=not progress, smoothing=0.1)
     committed, merge = _chunk_runner(cfg, specs, out, todo, workers, engine)
-    for count in committed:
-        bar.update(count)
+    with closing(committed):  # its workers stop here even if the loop is interrupted
+        for count in committed:
+            bar.update(count)
     bar.close()
     manifest = {
         "generator": "vistac generate",

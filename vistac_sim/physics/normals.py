@@ -17,7 +17,8 @@ if TYPE_CHECKING:
     from vistac_sim.physics.press import PressResult
     from vistac_sim.scene.grasp import Grasp
 
-_FLAT_COS = np.cos(np.radians(0.5))  # faces this close in direction count as one flat surface
+# faces this close in direction count as one flat surface
+_FLAT_COS = float(np.cos(np.radians(0.5)))
 
 
 def surface_normals(triangles: TriangleIndex, grasp: Grasp, res: PressResult,
@@ -58,8 +59,8 @@ def surface_normals(triangles: TriangleIndex, grasp: Grasp, res: PressResult,
             px, py = px - ox, py - oy
             q, normals = triangles.query(centre, (c * px + s * py, c * py - s * px, pz))
             to_pad = [centre[i] - q[i] for i in range(3)]
-            n = normals[0]
-            if len(normals) == 1 or all(_dot(m, n) > _FLAT_COS for m in normals):
+            n = normals[0]  # a degenerate face's zero normal fails this test: edge rule
+            if all(_dot(m, n) > _FLAT_COS for m in normals):
                 if _dot(n, to_pad) < 0:  # an open mesh seen from behind
                     n = [-x for x in n]
             else:
@@ -102,11 +103,6 @@ class TriangleIndex:
         # normal, barycentric rows.
         self._rows = np.stack([self.tri[:, 0], self.face_normals, self.bary[:, 0],
                                self.bary[:, 1]], axis=1)  # (F, 4, 3)
-        # Edges (a->b, b->c, c->a) and their inverse squared lengths, for exact distances.
-        self._edges = np.roll(self.tri, -1, axis=1) - self.tri  # (F, 3, 3)
-        length2 = (self._edges * self._edges).sum(-1)
-        self._inv_length2 = np.divide(1.0, length2, out=np.zeros_like(length2),
-                                      where=length2 > 0)
 
     def _near(self, c: np.ndarray, radius: float) -> np.ndarray:
         """Indices of the faces whose box lies within `radius` of `c` (all if none)."""
@@ -133,9 +129,10 @@ class TriangleIndex:
         """`closest` for 3-sequences of floats, answered in Python floats (the labels' hot path:
         one query per contact)."""
         idx = self._near(np.array(around), radius)
-        fast = self._inside_face(point, idx, tol)
-        if fast is not None:
-            return fast
+        if len(idx) <= SCALAR_CANDIDATES:
+            fast = self._inside_face(point, idx, tol)
+            if fast is not None:
+                return fast
         p = np.array(point, float)
         q = closest_point_on_triangles(p, self.tri[idx])
         dist = np.sqrt(((q - p) ** 2).sum(1))
@@ -144,11 +141,13 @@ class TriangleIndex:
 
     def _inside_face(self, p, idx: np.ndarray, tol: float = 1e-9,
                      margin: float = 1e-6) -> tuple[list[float], list[list[float]]] | None:
-        """The common case, exactly: `p` projects well inside face j, and every other candidate
-        that is not coplanar with j lies farther than `tol` beyond it (first by its plane's
-        distance, a lower bound; where that does not tell, by its exact distance, which is then
-        on one of its edges), so j holds the closest point and it lies on no edge. None
-        otherwise. In Python floats: a query has a few candidates (two in most presses)."""
+        """The common case: `p` projects well inside face j (farther than `margin`, in
+        barycentric units, from its edges), and every other candidate that is not coplanar with
+        j lies farther than `tol` beyond it (first by its plane's distance, a lower bound; where
+        that does not tell, by the distance to its edges, where its closest point then lies), so
+        j holds the closest point and it lies on no edge. None otherwise. In Python floats: a
+        query has a few candidates (two in most presses; `query` sends more than
+        `SCALAR_CANDIDATES` to the vectorised search)."""
         px, py, pz = p
         rows = self._rows[idx].tolist()
         planes, j = [], -1
@@ -173,23 +172,29 @@ class TriangleIndex:
             if inside:  # its own closest point is as close as j's
                 return None
             others.append(int(idx[k]))
-        if others and min(self._edge_distance2(p, f) for f in others) <= limit * limit:
+        if any(self._edge_distance2(p, f) <= limit * limit for f in others):
             return None
         return [px - plane_j * n[0], py - plane_j * n[1], pz - plane_j * n[2]], [n]
 
     def _edge_distance2(self, p, face: int) -> float:
         """Squared distance from `p` to the nearest edge of `face`."""
+        corners = self.tri[face].tolist()
         best = math.inf
-        for a, e, inv in zip(self.tri[face].tolist(), self._edges[face].tolist(),
-                             self._inv_length2[face].tolist(), strict=True):
+        for k in range(3):
+            a, b = corners[k], corners[(k + 1) % 3]
+            e = [b[i] - a[i] for i in range(3)]
             w = [p[i] - a[i] for i in range(3)]
-            t = min(max(_dot(w, e) * inv, 0.0), 1.0)
+            length2 = _dot(e, e)
+            t = min(max(_dot(w, e) / length2, 0.0), 1.0) if length2 > 0 else 0.0
             r = [w[i] - t * e[i] for i in range(3)]
             best = min(best, _dot(r, r))
         return best
 
 
-_COPLANAR_COS = np.cos(np.radians(0.01))
+SCALAR_CANDIDATES = 64
+"""Up to this many candidate faces a query tries the Python fast path (`_inside_face`); beyond,
+NumPy's vectorised search is cheaper."""
+_COPLANAR_COS = float(np.cos(np.radians(0.01)))
 
 
 def closest_point_on_triangles(p: np.ndarray, tri: np.ndarray) -> np.ndarray:
