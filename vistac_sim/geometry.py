@@ -1,4 +1,5 @@
-"""Small vectorised geometry helpers: yaw quaternions, unit vectors, angles."""
+"""Small geometry helpers: yaw quaternions, unit vectors, angles (vectorised), and the closest
+point on a segment (Python floats: per contact of a press)."""
 
 from __future__ import annotations
 
@@ -25,3 +26,14 @@ def angle_deg(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     cross = np.linalg.norm(np.cross(a, b), axis=-1) if a.shape[-1] == 3 else np.abs(
         a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0])
     return np.degrees(np.arctan2(cross, (a * b).sum(-1)))
+
+
+def closest_on_segment(p, a, b) -> list[float]:
+    """Closest point to `p` on the segment a-b (3-sequences of floats)."""
+    ex, ey, ez = b[0] - a[0], b[1] - a[1], b[2] - a[2]
+    length2 = ex * ex + ey * ey + ez * ez
+    t = 0.0
+    if length2 > 0:
+        along = (p[0] - a[0]) * ex + (p[1] - a[1]) * ey + (p[2] - a[2]) * ez
+        t = min(max(along / length2, 0.0), 1.0)
+    return [a[0] + t * ex, a[1] + t * ey, a[2] + t * ez]

@@ -31,7 +31,7 @@ from vistac.dataset import FINGERS
 from vistac_sim.objects.decomposition import pieces_section
 from vistac_sim.objects.outlines import boundary_arrays
 from vistac_sim.physics.checks import RejectedSample
-from vistac_sim.scene.grasp import Grasp, to_world
+from vistac_sim.scene.grasp import Grasp, cap_starts, to_world
 
 if TYPE_CHECKING:
     from vistac_sim.generate.config import GenerateCfg
@@ -189,8 +189,5 @@ class OutlineSampler:
         target, normal = [p_i, p_t], [n_i, n_t]
         approach = [self._turned(rng, n, g.approach_spread_deg) for n in normal]
         push = [close, [-close[0], -close[1]]]
-        # the start of each tip's front cap (as `Grasp.start`), in the object frame
-        start = [[t[i] + n[i] * h.tip_radius - d[i] * h.standoff for i in range(2)]
-                 for t, n, d in zip(target, normal, push, strict=True)]
-        self._check_axes(start, approach)
+        self._check_axes(cap_starts(target, normal, push, h.tip_radius, h.standoff), approach)
         return to_world(yaw, xy, target, normal, approach, push)

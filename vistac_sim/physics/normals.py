@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from vistac_sim.geometry import unit
+from vistac_sim.geometry import closest_on_segment, unit
 
 if TYPE_CHECKING:
     from vistac_sim.physics.press import PressResult
@@ -47,15 +47,13 @@ def surface_normals(triangles: TriangleIndex, grasp: Grasp, res: PressResult,
     out = []
     for k in range(2):
         ax, ay = grasp.approach[k].tolist()
-        tx, ty, tz = res.tip[k].tolist()
-        sx, sy = tx - ax * reach, ty - ay * reach  # back end of the pad's (horizontal) axis
-        dx, dy = tx - sx, ty - sy
-        dd = max(dx * dx + dy * dy, 1e-300)
+        tip = res.tip[k].tolist()
+        back = [tip[0] - ax * reach, tip[1] - ay * reach, tip[2]]  # the pad's (horizontal) axis
         acc = [0.0, 0.0, 0.0]
         for px, py, pz, weight in res.pad_contacts[k].tolist():
-            t = min(max(((px - sx) * dx + (py - sy) * dy) / dd, 0.0), 1.0)
-            cx, cy = sx + t * dx - ox, sy + t * dy - oy
-            centre = (c * cx + s * cy, c * cy - s * cx, tz)
+            cx, cy, cz = closest_on_segment((px, py, pz), back, tip)
+            cx, cy = cx - ox, cy - oy
+            centre = (c * cx + s * cy, c * cy - s * cx, cz)
             px, py = px - ox, py - oy
             q, normals = triangles.query(centre, (c * px + s * py, c * py - s * px, pz))
             to_pad = [centre[i] - q[i] for i in range(3)]
@@ -181,12 +179,8 @@ class TriangleIndex:
         corners = self.tri[face].tolist()
         best = math.inf
         for k in range(3):
-            a, b = corners[k], corners[(k + 1) % 3]
-            e = [b[i] - a[i] for i in range(3)]
-            w = [p[i] - a[i] for i in range(3)]
-            length2 = _dot(e, e)
-            t = min(max(_dot(w, e) / length2, 0.0), 1.0) if length2 > 0 else 0.0
-            r = [w[i] - t * e[i] for i in range(3)]
+            q = closest_on_segment(p, corners[k], corners[(k + 1) % 3])
+            r = [p[i] - q[i] for i in range(3)]
             best = min(best, _dot(r, r))
         return best
 

@@ -37,10 +37,19 @@ class Grasp:
 
         The cap would touch the target after moving `standoff` along its push direction.
         """
-        return self.target + self.normal * tip_radius - self.push_dirs * standoff
+        return np.array(cap_starts(self.target.tolist(), self.normal.tolist(),
+                                   self.push_dirs.tolist(), tip_radius, standoff))
 
     def moved(self, **changes) -> Grasp:
         return replace(self, **changes)
+
+
+def cap_starts(target, normal, push, tip_radius: float, standoff: float) -> list[list[float]]:
+    """Each tip's front-cap centre before the press (`Grasp.start`), from (2, 2) nested lists
+    of targets, outward normals and push directions: the cap would touch the target after
+    moving `standoff` along its push direction."""
+    return [[t[i] + n[i] * tip_radius - d[i] * standoff for i in range(2)]
+            for t, n, d in zip(target, normal, push, strict=True)]
 
 
 def to_world(yaw: float, xy: np.ndarray, target: list, normal: list, approach: list,
@@ -52,12 +61,14 @@ def to_world(yaw: float, xy: np.ndarray, target: list, normal: list, approach: l
     c, s = math.cos(yaw), math.sin(yaw)
     x0, y0 = float(xy[0]), float(xy[1])
 
+    def rotated(v: list[float]) -> tuple[float, float]:
+        return v[0] * c - v[1] * s, v[0] * s + v[1] * c
+
     def turned(v: list[float]) -> list[float]:
-        x, y = v[0] * c - v[1] * s, v[0] * s + v[1] * c
+        x, y = rotated(v)
         length = math.sqrt(x * x + y * y)
         return [x / length, y / length] if length > 0 else [0.0, 0.0]
 
-    return Grasp(np.asarray(xy), yaw,
-                 np.array([[v[0] * c - v[1] * s + x0, v[0] * s + v[1] * c + y0] for v in target]),
+    return Grasp(np.asarray(xy), yaw, np.array([[x + x0, y + y0] for x, y in map(rotated, target)]),
                  np.array([turned(v) for v in normal]), np.array([turned(v) for v in approach]),
                  push=np.array([turned(v) for v in push]))
