@@ -11,6 +11,7 @@ import pytest
 from bad_input_env import GEN_OK, ING_OK, TRAIN_OK
 
 from vistac.cli import main
+from vistac_sim.generate.shards import SHARD
 
 
 def _one_error_line(capsys, needle: str) -> None:
@@ -42,7 +43,7 @@ def test_a_truncated_shard_is_made_again_on_resume(env, monkeypatch, capsys):
     monkeypatch.setattr(run_mod, "run_chunk", stops_after_two)
     assert main(["generate", "--out", str(out), *args]) == 130
     monkeypatch.setattr(run_mod, "run_chunk", original)
-    shards = sorted((out / ".partial" / "shards").glob("*.configs.arrow"))
+    shards = sorted((out / ".partial" / "shards").glob(f"*.configs{SHARD}"))
     assert len(shards) == 2
     shards[0].write_bytes(shards[0].read_bytes()[:40])  # a damaged shard
     (out / "images" / ".000003.png.999999999.tmp").write_bytes(b"half")  # a killed writer's

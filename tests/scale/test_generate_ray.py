@@ -16,6 +16,7 @@ from vistac.errors import UserError
 from vistac_sim.generate import on_ray
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.run import plan_chunks
+from vistac_sim.generate.shards import SHARD
 
 ARGS = ["--n", "18", "--seed", "5", "--noise", "0.05", "--n-objects", "3", "--chunk-size", "3",
         "--repeats", "2", "--no-progress"]
@@ -87,12 +88,12 @@ def test_killed_ray_driver_then_resume_equals_local(ray_local, local_reference, 
     proc = subprocess.Popen(cmd)
     shards = out / ".partial" / "shards"
     deadline = time.time() + 120
-    while time.time() < deadline and len(list(shards.glob("*.configs.arrow"))) < 2:
+    while time.time() < deadline and len(list(shards.glob(f"*.configs{SHARD}"))) < 2:
         assert proc.poll() is None, "the driver ended before it was killed"
         time.sleep(0.02)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
-    before = {int(p.name[6:11]) for p in shards.glob("*.configs.arrow")}
+    before = {int(p.name[6:11]) for p in shards.glob(f"*.configs{SHARD}")}
     assert 2 <= len(before) < N_CHUNKS and not (out / "manifest.json").exists()
     made = []
     commit = on_ray.commit_chunk

@@ -15,6 +15,7 @@ import pytest
 from vistac.cli import main
 from vistac.dataset import open_dataset
 from vistac.errors import UserError
+from vistac_sim.generate.shards import SHARD
 
 FINGERS = ("index", "thumb")
 CONFIG_COLUMNS = (
@@ -137,7 +138,7 @@ def test_kill_9_then_resume_equals_uninterrupted(tmp_path):
     proc = subprocess.Popen(cmd)
     shards = out / ".partial" / "shards"
     deadline = time.time() + 120
-    while time.time() < deadline and len(list(shards.glob("*.configs.arrow"))) < 3:
+    while time.time() < deadline and len(list(shards.glob(f"*.configs{SHARD}"))) < 3:
         time.sleep(0.05)
     os.kill(proc.pid, signal.SIGKILL)
     proc.wait()
