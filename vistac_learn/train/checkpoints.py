@@ -9,24 +9,62 @@ every parameter of the feature layers (names containing ``features``) fixed.
 
 from __future__ import annotations
 
-import json
-import os
+import io
+from collections.abc import Sequence
 from pathlib import Path
 
 import torch
 
-from vistac.dataset.files import temporary_path
+from vistac.dataset.files import atomic_write_bytes
 from vistac.errors import UserError
+from vistac_learn.train.run_files import read_run_config
 
 
 def atomic_save(obj, path: Path) -> None:
-    """`torch.save` through a temporary file and a rename (a kill leaves the old file)."""
-    tmp = temporary_path(path)
+    """`torch.save` through a temporary file and a rename (a kill leaves the old file).
+
+    The checkpoint is serialised in memory first, so that a failing write (a full disk) is the
+    `OSError` of Python's own file write, not an error from inside torch's writer.
+    """
+    buf = io.BytesIO()
+    torch.save(obj, buf)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def load_checkpoint(path: Path, keys: Sequence[str], fix: str, map_location="cpu") -> dict:
+    """A checkpoint written by `atomic_save`, checked: a dict holding `keys`.
+
+    Args:
+        path: The ``.pt`` file.
+        keys: Entries it must hold.
+        fix: What the user can do about a damaged file (the end of the error's line).
+        map_location: Where tensors go.
+
+    Raises:
+        UserError: the file is missing, truncated, not a checkpoint or lacks an entry.
+    """
     try:
-        torch.save(obj, tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+        ck = torch.load(path, map_location=map_location, weights_only=False)
+    except FileNotFoundError:
+        raise UserError(f"{path}: missing; {fix}") from None
+    except Exception as exc:  # truncated or foreign bytes: zipfile, pickle and torch errors
+        reason = " ".join(str(exc).split())[:120] or type(exc).__name__
+        raise UserError(f"{path}: not a readable checkpoint ({reason}); {fix}") from None
+    missing = [k for k in keys if not isinstance(ck, dict) or k not in ck]
+    if missing:
+        raise UserError(f"{path}: not a checkpoint of this kind (no {', '.join(missing)}); "
+                        f"{fix}")
+    return ck
+
+
+def load_weights(model: torch.nn.Module, state: dict, path: Path, fix: str) -> None:
+    """`model.load_state_dict(state)`, a mismatch (other model, damaged tensors) one line."""
+    try:
+        model.load_state_dict(state)
+    except (RuntimeError, TypeError, AttributeError) as exc:
+        reason = " ".join(str(exc).split())[:120]
+        raise UserError(f"{path}: weights do not fit the run's model ({reason}); {fix}") \
+            from None
 
 
 def is_frozen(name: str, freeze: str) -> bool:
@@ -55,14 +93,17 @@ def init_from_run(model: torch.nn.Module, cfg) -> dict:
         raise UserError(f"--init {run}: not a finished run (needs config.json and "
                         "checkpoints/best.pt)")
     try:
-        saved = torch.load(path, map_location="cpu", weights_only=False)["model"]
-    except Exception as exc:  # a truncated or foreign file
-        raise UserError(f"--init {path}: unreadable checkpoint ({exc})") from None
+        saved = load_checkpoint(path, ("model",), "choose another --init run")["model"]
+        src = read_run_config(run, "choose another --init run")["train"]
+    except UserError as exc:
+        raise UserError(f"--init {exc}") from None
+    if not isinstance(saved, dict):
+        raise UserError(f"--init {path}: not a checkpoint of model weights; choose another run")
     own = model.state_dict()
-    copied = [k for k, v in saved.items() if k in own and own[k].shape == v.shape]
+    copied = [k for k, v in saved.items()
+              if k in own and isinstance(v, torch.Tensor) and own[k].shape == v.shape]
     fresh = [k for k in own if k not in copied]
     if not copied:
-        src = json.loads((run / "config.json").read_text())["train"]
         raise UserError(f"--init {run}: its model ({src.get('model')}, {src.get('variant')}) "
                         f"shares no weights with --model {cfg.model} --variant {cfg.variant}")
     own.update({k: saved[k] for k in copied})
