@@ -42,7 +42,7 @@ from vistac_learn.train.config import (
     input_size,
     resolve_device,
 )
-from vistac_learn.train.run_files import read_run_config
+from vistac_learn.train.run_files import read_run_config, run_settings
 
 RETRAIN = "train the run again (`vistac train` into this folder without --resume)"
 
@@ -54,13 +54,7 @@ def load_run(run: str | Path) -> tuple[TrainCfg, dict]:
         UserError: no run there, or a damaged ``config.json`` (what to do in the message).
     """
     meta = read_run_config(Path(run), RETRAIN)
-    known = {f.name for f in dataclasses.fields(TrainCfg)}
-    try:
-        cfg = TrainCfg(**{k: v for k, v in meta["train"].items() if k in known})
-    except (UserError, TypeError, ValueError) as exc:
-        raise UserError(f"{Path(run) / 'config.json'}: its train settings are not valid "
-                        f"({exc}); {RETRAIN}") from None
-    return cfg, meta
+    return run_settings(Path(run), meta, RETRAIN), meta
 
 
 def load_model(

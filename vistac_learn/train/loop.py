@@ -24,6 +24,7 @@ are bit-identical. A run killed before its first checkpoint is simply started ag
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import platform
@@ -37,7 +38,7 @@ import torch
 from tqdm import tqdm
 
 from vistac.dataset import open_dataset
-from vistac.dataset.files import atomic_write_json, remove_stale_temporaries
+from vistac.dataset.files import atomic_write_bytes, atomic_write_json, remove_stale_temporaries
 from vistac.errors import UserError
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import fingers_of
@@ -60,7 +61,7 @@ from vistac_learn.train.config import (
     run_coverage,
 )
 from vistac_learn.train.memory import check_fits
-from vistac_learn.train.run_files import read_metrics, read_run_config
+from vistac_learn.train.run_files import read_run_config, run_settings
 
 HIGHER_IS_BETTER = frozenset({"correct_y_pct", "in_cone_pct", "n_in_cone"})
 RUN_FILES = frozenset({"config.json", "metrics.csv", "checkpoints", "eval"})
@@ -111,14 +112,17 @@ def _append_rows(path: Path, rows: list[dict]) -> None:
         w.writerows(rows)
 
 
-def _logged_epochs(path: Path) -> set[int] | None:
-    """Epochs in the metrics CSV; None when it is damaged (it is then rewritten)."""
-    if not path.exists():
-        return set()
-    try:
-        return {int(r["epoch"]) for r in read_metrics(path, RESTART)}
-    except UserError:
-        return None
+def _restore_metrics(path: Path, history: list[dict]) -> None:
+    """Make the metrics CSV hold exactly the checkpoint's `history`: rows a kill kept from
+    being appended are added, a cut or edited table is written again."""
+    buf = io.StringIO(newline="")
+    if history:
+        w = csv.DictWriter(buf, fieldnames=list(history[0].keys()))
+        w.writeheader()
+        w.writerows(history)
+    want = buf.getvalue().encode()
+    if not path.exists() or path.read_bytes() != want:
+        atomic_write_bytes(path, want)
 
 
 def masked_mse(pred: torch.Tensor, target: torch.Tensor, found: torch.Tensor) -> torch.Tensor:
@@ -247,13 +251,7 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
         start_epoch, start_batch = ck["epoch"], ck["batch"]
         run_sum, run_n = ck["run_sum"], ck["run_n"]
         history, best_value, best_epoch = ck["history"], ck["best_value"], ck["best_epoch"]
-        logged = _logged_epochs(metrics_path)
-        if logged is None:  # a damaged metrics table: written again from the checkpoint
-            metrics_path.unlink()
-            logged = set()
-        missing = [r for r in history if r["epoch"] not in logged]
-        if missing:  # killed between the checkpoint and the metrics append
-            _append_rows(metrics_path, missing)
+        _restore_metrics(metrics_path, history)  # a kill before an append, a damaged table
     else:  # a new run, or one killed before its first checkpoint: start (again) from scratch
         ckpt_dir.mkdir(parents=True, exist_ok=True)
         remove_stale_temporaries(ckpt_dir)
@@ -354,7 +352,7 @@ def damage(out: Path) -> str | None:
     if not (out / "checkpoints" / "last.pt").exists():
         return None
     try:
-        read_run_config(out, RESTART)
+        run_settings(out, read_run_config(out, RESTART), RESTART)
         load_checkpoint(out / "checkpoints" / "last.pt", LAST_KEYS, RESTART)
         if (out / "checkpoints" / "best.pt").exists():
             load_checkpoint(out / "checkpoints" / "best.pt", BEST_KEYS, RESTART)

@@ -11,8 +11,12 @@ import csv
 import json
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from vistac.errors import UserError
+
+if TYPE_CHECKING:
+    from vistac_learn.train.config import TrainCfg
 
 CONFIG = "config.json"
 METRICS = "metrics.csv"
@@ -44,6 +48,24 @@ def read_run_config(run: Path, fix: str) -> dict:
         raise UserError(f"{path}: not a run's config (needs train settings and the dataset's "
                         f"path and fingerprint); {fix}")
     return meta
+
+
+def run_settings(run: Path, meta: dict, fix: str) -> TrainCfg:
+    """The `TrainCfg` of a run's parsed ``config.json`` (keys of other versions ignored).
+
+    Raises:
+        UserError: settings a run cannot have (a hand-edited file).
+    """
+    import dataclasses
+
+    from vistac_learn.train.config import TrainCfg
+
+    known = {f.name for f in dataclasses.fields(TrainCfg)}
+    try:
+        return TrainCfg(**{k: v for k, v in meta["train"].items() if k in known})
+    except (UserError, TypeError, ValueError) as exc:
+        raise UserError(f"{Path(run) / CONFIG}: its train settings are not valid ({exc}); "
+                        f"{fix}") from None
 
 
 def read_metrics(path: Path, fix: str) -> list[dict[str, float]]:
