@@ -141,7 +141,8 @@ def test_label_noise_end_to_end(data, tmp_path):
     assert np.allclose(noisy.presses[again.columns].to_numpy(float), again.to_numpy(float))
     other = noisy_presses(src.configs, src.presses, 0.2, 0)
     assert not np.allclose(other["r_y_index"], again["r_y_index"])
-    assert noisy.fingerprint() == src.fingerprint()  # same images and configurations
+    assert noisy.image_fingerprint() == src.image_fingerprint()  # same images and configs
+    assert noisy.fingerprint() != src.fingerprint()  # other labels
     assert main(argv) == 0 and _rows(out / "cells.csv") == rows  # nothing left to do
 
 

@@ -150,7 +150,8 @@ def read_manifest(root: Path, require_complete: bool = True) -> dict:
 
     Raises:
         UserError: no such folder, no manifest (an interrupted run is named as such), invalid
-            JSON or not an object, a `format_version` this version does not read, or (with
+            JSON or not an object, a `format_version` other than this version's (a manifest
+            without one is read as this version's), or (with
             `require_complete`) a dataset not marked complete.
     """
     man_path = root / MANIFEST
@@ -167,9 +168,9 @@ def read_manifest(root: Path, require_complete: bool = True) -> dict:
         raise UserError(f"{man_path}: not valid JSON ({exc}); make the dataset again") from None
     if not isinstance(manifest, dict):
         raise UserError(f"{man_path}: not a JSON object; make the dataset again")
-    version = manifest.get("format_version")
+    version = manifest.get("format_version", FORMAT_VERSION)  # hand-made ones may lack it
     if version != FORMAT_VERSION or isinstance(version, bool):
-        what = "missing" if version is None else f"{str(version)[:40]!r}"
+        what = f"{str(version)[:40]!r}"
         newer = isinstance(version, int) and not isinstance(version, bool) \
             and version > FORMAT_VERSION
         raise UserError(f"{man_path}: format_version {what} is not {FORMAT_VERSION}, the one "

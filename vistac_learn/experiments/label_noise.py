@@ -86,8 +86,9 @@ def clean_forces(configs: pd.DataFrame) -> pd.DataFrame:
 def derive_dataset(source: Path, folder: Path, presses: pd.DataFrame, note: dict) -> None:
     """A dataset that is `source` with other presses (manifest, configs and images shared).
 
-    The manifest and configuration table are byte copies, so the dataset's fingerprint (and
-    fingertip cache) is the source's; ``label_noise.json`` says what was changed. Written
+    The manifest and configuration table are byte copies, so the dataset's image fingerprint
+    (and fingertip cache) is the source's (its fingerprint, which covers the labels, is not);
+    ``label_noise.json`` says what was changed. Written
     manifest last: a folder without it is redone.
     """
     if (folder / MANIFEST).exists():
@@ -150,7 +151,7 @@ def _name(level: float, seed: int) -> str:
 def make_cells(cfg: LabelNoiseCfg, base: TrainCfg) -> list[C.Cell]:
     """Every cell, in report order (`base`'s data, out and seed are replaced)."""
     out = Path(cfg.out).absolute()
-    cache = base.cache_dir or str(Path(cfg.data) / "cache")  # one fingerprint: one cache
+    cache = base.cache_dir or str(Path(cfg.data) / "cache")  # one image fingerprint: one cache
     clean = ScoreCfg("clean", "test", data=str(out / "data" / "clean"))
     cells = []
     for level in sorted(cfg.levels):
