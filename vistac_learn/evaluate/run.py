@@ -26,6 +26,7 @@ import pandas as pd
 import torch
 
 from vistac.dataset import open_dataset
+from vistac.dataset.files import atomic_write_bytes
 from vistac.errors import UserError
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import RotationCfg, fingers_of
@@ -96,7 +97,7 @@ def _write_outputs(
     table = format_table([(f"{label} ({f})", summary[f]) for f in fingers])
     result = {**info, "label": label, "fingers": list(fingers), "n_configs": int(len(rows)),
               "n_predictions": int(len(pred)), "metrics": summary, "table": table}
-    (out / "metrics.json").write_text(json.dumps(result, indent=2))
+    atomic_write_bytes(out / "metrics.json", json.dumps(result, indent=2).encode())
     if make_plots:
         order = np.argsort(rows)
         pos = order[np.searchsorted(rows[order], item_row)]

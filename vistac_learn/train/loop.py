@@ -6,9 +6,10 @@ best epoch by the selection metric is kept as `best.pt`.
 Run folder (``--out``):
 
 - ``config.json``: the full `TrainCfg`, the model's size, the dataset's absolute path and
-  fingerprint, where `--init` weights came from, versions.
+  fingerprint, where `--init` weights came from, versions, the fingertips not found per split.
 - ``metrics.csv``: append-only, one row per finished epoch (train loss, validation loss and
-  the validation metrics of each finger, seconds).
+  the validation metrics of each finger, seconds); a resume makes it match the checkpoint's
+  history again (a row a kill kept from being appended, a cut or edited table).
 - ``checkpoints/last.pt``: model, optimizer, schedule, torch RNG state, position (epoch, batch),
   history; written atomically at the end of every epoch and every ``checkpoint_every`` batches.
 - ``checkpoints/best.pt``: the model weights of the best validation epoch.
@@ -19,6 +20,13 @@ and every sample's augmentation from (seed, e, sample), independent of what ran 
 RNG state travels in the checkpoint. A run killed at any point and continued with ``--resume``
 therefore replays exactly the batches the uninterrupted run would have seen; on CPU its metrics
 are bit-identical. A run killed before its first checkpoint is simply started again.
+
+Before any work: the memory a batch needs is estimated (`vistac_learn.train.memory`) and
+the fingertips not found counted per split (`vistac_learn.data.tip_coverage`); either over
+its bound refuses the run. A loss that is not finite or above `DIVERGED_LOSS` stops the run
+(`TrainingDiverged`) and marks it; a plain rerun into a diverged run, or into one whose
+``config.json`` or checkpoints are damaged (`damage`), starts it over, while ``--resume`` of a
+damaged run says which file and that a plain rerun starts over.
 """
 
 from __future__ import annotations

@@ -106,8 +106,9 @@ def check_fits(model: nn.Module, channels: int, size: int, batch_size: int,
     have = available_bytes(device) if available is None else available
     need = max(train, score)
     if need > USABLE * have:
-        what = "training" if train >= score else f"scoring ({eval_batch_size} samples at once)"
+        what, fix = ("training", "lower --size or --batch-size") if train >= score else \
+            (f"scoring ({eval_batch_size} samples at once)", "lower --size")
         raise UserError(f"--size {size} --batch-size {batch_size}: {what} needs about "
                         f"{need / 2**30:.1f} GiB, {have / 2**30:.1f} GiB is available on "
-                        f"{device.type}; lower --size or --batch-size")
+                        f"{device.type}; {fix}")
     return train, score

@@ -14,6 +14,11 @@ Tuning folder (``--out T``):
 - ``best.json``, ``convergence.png``: the best trial so far, best objective against trial.
 - ``trials/NNNN/``: each trial's run folder.
 
+A tuning whose every trial failed (diverged) has no best trial: `vistac tune` then exits with
+an error, and a plain rerun into the folder starts it over (`failed`). A damaged
+``trials.csv`` or ``pending.json`` is not an error on ``--resume``: both are dropped and every
+trial replayed from its run folder (the same suggestions, the runs continue where they are).
+
 Repeatability and resume: the suggestion for trial i is computed by a fresh optimiser seeded
 from (seed, i) that is given the finished trials in trial order, so it depends only on them; a
 tuning killed at any point and resumed (``--resume``) replays the finished rows into the
