@@ -32,6 +32,7 @@ from vistac_learn.data.samples import RotationCfg, fingers_of
 from vistac_learn.evaluate import plots
 from vistac_learn.evaluate.geometric import GeometricCfg, baseline_predictions
 from vistac_learn.metrics.scoring import average_over_rotations, format_table, predict, score
+from vistac_learn.train.checkpoints import load_checkpoint
 from vistac_learn.train.config import (
     TrainCfg,
     build_model,
@@ -59,7 +60,7 @@ def load_model(
     path = Path(run) / "checkpoints" / f"{checkpoint}.pt"
     if not path.exists():
         raise UserError(f"{path}: missing (has the run finished an epoch?)")
-    ck = torch.load(path, map_location=device, weights_only=False)
+    ck = load_checkpoint(path, device)
     model = build_model(cfg)
     model.load_state_dict(ck["model"])
     return model.to(device), int(ck["epoch"])

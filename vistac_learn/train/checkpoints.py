@@ -1,4 +1,10 @@
-"""Checkpoint files of a run: atomic saves, stale temporaries, starting from another run.
+"""Checkpoint files of a run: atomic saves, safe loads, starting from another run.
+
+A checkpoint holds tensors and plain data only (dicts, lists, numbers, strings): `atomic_save`
+turns NumPy scalars and arrays, tuples' contents and paths into plain values before saving, and
+`load_checkpoint` reads with ``torch.load(weights_only=True)``, which refuses any pickled object
+that is not one of those. A checkpoint from somebody else's run therefore cannot run code: a file
+carrying a pickled call (``os.system`` and the like) is refused with a one-line error.
 
 `init_from_run` (``vistac train --init RUN``) copies RUN's best weights into a new model: every
 tensor whose name and shape match is copied; any other (a head for another number of fingers, a
@@ -13,20 +19,67 @@ import json
 import os
 from pathlib import Path
 
+import numpy as np
 import torch
 
 from vistac.dataset.files import temporary_path
 from vistac.errors import UserError
 
 
-def atomic_save(obj, path: Path) -> None:
-    """`torch.save` through a temporary file and a rename (a kill leaves the old file)."""
+def plain(obj):
+    """`obj` with NumPy values, tuples and paths turned into plain Python (tensors kept)."""
+    if isinstance(obj, torch.Tensor | str | int | float | bool) or obj is None:
+        return obj
+    if isinstance(obj, dict):
+        return {plain(k): plain(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [plain(v) for v in obj]
+    if isinstance(obj, np.ndarray | np.generic):
+        return obj.tolist()
+    if isinstance(obj, os.PathLike):
+        return os.fspath(obj)
+    raise TypeError(f"checkpoint: {type(obj).__name__} is not plain data")
+
+
+def atomic_save(obj: dict, path: Path) -> None:
+    """Save `obj` as plain data (see `plain`) through a temporary file and a rename (a kill
+    leaves the old file)."""
     tmp = temporary_path(path)
     try:
-        torch.save(obj, tmp)
+        torch.save(plain(obj), tmp)
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+def load_checkpoint(path: Path, device="cpu", what: str = "") -> dict:
+    """Read a checkpoint safely (``weights_only=True``: tensors and plain data, no code).
+
+    Args:
+        path: The ``.pt`` file.
+        device: Where tensors are mapped.
+        what: The option the file came from (``--init``), to name it in errors.
+
+    Raises:
+        UserError: the file is missing, truncated, not a checkpoint, or carries pickled objects
+            other than tensors and plain data.
+    """
+    name = f"{what} {path}" if what else str(path)
+    if not Path(path).is_file():
+        raise UserError(f"{name}: missing checkpoint")
+    try:
+        ck = torch.load(path, map_location=device, weights_only=True)
+    except Exception as exc:  # noqa: BLE001 - a foreign, truncated or unsafe file
+        reason = " ".join(str(exc).split())
+        if "weights_only" in reason or "Unsupported global" in reason:
+            reason = "it holds pickled objects other than tensors and plain data (refused: " \
+                     "loading them could run code)"
+        else:
+            reason = f"unreadable ({reason[:160]})"
+        raise UserError(f"{name}: {reason}; delete it or rerun without --resume") from None
+    if not isinstance(ck, dict) or not isinstance(ck.get("model"), dict):
+        raise UserError(f"{name}: not a vistac checkpoint (no model weights)")
+    return ck
 
 
 def is_frozen(name: str, freeze: str) -> bool:
@@ -54,10 +107,7 @@ def init_from_run(model: torch.nn.Module, cfg) -> dict:
     if not (run / "config.json").exists() or not path.exists():
         raise UserError(f"--init {run}: not a finished run (needs config.json and "
                         "checkpoints/best.pt)")
-    try:
-        saved = torch.load(path, map_location="cpu", weights_only=False)["model"]
-    except Exception as exc:  # a truncated or foreign file
-        raise UserError(f"--init {path}: unreadable checkpoint ({exc})") from None
+    saved = load_checkpoint(path, what="--init")["model"]
     own = model.state_dict()
     copied = [k for k, v in saved.items() if k in own and own[k].shape == v.shape]
     fresh = [k for k in own if k not in copied]

@@ -20,10 +20,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import torch
-
 from vistac.config import Config, param
 from vistac_learn.data.samples import fingers_of
+from vistac_learn.train.checkpoints import load_checkpoint
 from vistac_learn.train.config import TrainCfg
 from vistac_learn.train.loop import TrainingDiverged, train
 
@@ -98,8 +97,7 @@ def run_job(cfg: JobCfg) -> JobResult:
     resume = cfg.resume == "yes" or (cfg.resume == "auto" and started)
     train(cfg.train, resume=resume, progress=cfg.progress)
     rows = _metrics_rows(out / "metrics.csv")
-    best = torch.load(out / "checkpoints" / "best.pt", map_location="cpu",
-                      weights_only=False)["epoch"]
+    best = load_checkpoint(out / "checkpoints" / "best.pt")["epoch"]
     row = next(r for r in rows if int(r["epoch"]) == best)
     fingers = fingers_of(cfg.train.finger)
     objective = sum(row[f"val_{f}_{OBJECTIVE}"] for f in fingers) / len(fingers)

@@ -39,6 +39,7 @@ from tqdm import tqdm
 from vistac.dataset import open_dataset
 from vistac.dataset.files import atomic_write_json, remove_stale_temporaries
 from vistac.errors import UserError
+from vistac.folder_lock import hold
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import fingers_of
 from vistac_learn.metrics.scoring import predict, score_predictions
@@ -46,6 +47,7 @@ from vistac_learn.models.tipnet import apply_model
 from vistac_learn.train.checkpoints import (
     atomic_save,
     init_from_run,
+    load_checkpoint,
     trainable_parameters,
 )
 from vistac_learn.train.config import (
@@ -159,8 +161,15 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
 
     Raises:
         UserError: Bad settings or data, an existing run folder without ``resume``, a resume
-            with other settings or another dataset, a training loss that is not finite.
+            with other settings or another dataset, a training loss that is not finite, a run
+            folder that another process holds.
     """
+    with hold(cfg.out, "train"):
+        return _train(cfg, resume, progress, on_batch)
+
+
+def _train(cfg: TrainCfg, resume: bool, progress: bool,
+           on_batch: Callable[[int, int], None] | None) -> Path:
     out = Path(cfg.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: exists and is not a folder")
@@ -206,7 +215,7 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
     best_value, best_epoch = None, None
     if started:
         remove_stale_temporaries(ckpt_dir)
-        ck = torch.load(last_path, map_location=device, weights_only=False)
+        ck = load_checkpoint(last_path, device)
         model.load_state_dict(ck["model"])
         opt.load_state_dict(ck["optimizer"])
         sched.load_state_dict(ck["schedule"])

@@ -25,6 +25,7 @@ from tqdm import tqdm
 
 from vistac.dataset import files
 from vistac.engine import EngineCfg, preflight
+from vistac.folder_lock import hold
 from vistac_sim.effects import build_pipeline
 from vistac_sim.generate import shards
 from vistac_sim.generate.config import GenerateCfg
@@ -153,10 +154,11 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
 
     Raises:
         UserError: bad options, bad meshes or objects without a valid grasp (strict), no
-            usable object, or an `out` that cannot be used.
+            usable object, or an `out` that cannot be used or that another process holds.
     """
     try:
-        return _generate(cfg, Path(out), workers, resume, progress, engine or EngineCfg())
+        with hold(out, "generate"):
+            return _generate(cfg, Path(out), workers, resume, progress, engine or EngineCfg())
     finally:
         stop_fork_server()
 
