@@ -19,6 +19,7 @@ from vistac.dataset.schema import (
     CONFIGS,
     FINGER_RGB,
     FINGERS,
+    FORMAT_VERSION,
     IMAGES,
     LABEL_COLUMNS,
     MANIFEST,
@@ -50,6 +51,7 @@ class DatasetTables:
     presses: pd.DataFrame
     cones: dict[str, list[np.ndarray]] = field(default_factory=dict)
     _fingerprint: str | None = None
+    _image_fingerprint: str | None = None
 
     @property
     def render(self) -> dict:
@@ -106,18 +108,35 @@ class DatasetTables:
             out[i] = m / norm if norm > 1e-12 else (0.0, -1.0)
         return out
 
-    def fingerprint(self) -> str:
-        """SHA-256 (hex) of the manifest, the configuration table and every image's bytes."""
-        if self._fingerprint is None:
+    def image_fingerprint(self) -> str:
+        """SHA-256 (hex) of the manifest, the configuration table and every image's bytes: what
+        is seen of a configuration (its labels left out; the key of caches of image content)."""
+        if self._image_fingerprint is None:
             h = hashlib.sha256()
             for name in (MANIFEST, CONFIGS):
-                h.update((self.root / name).read_bytes())
+                h.update(_read_bytes(self.root / name))
             for row in range(len(self.configs)):
                 path = self.image_path(row)
                 h.update(path.name.encode())
-                h.update(path.read_bytes() if path.exists() else b"<missing>")
+                h.update(path.read_bytes() if path.is_file() else b"<missing>")
+            self._image_fingerprint = h.hexdigest()
+        return self._image_fingerprint
+
+    def fingerprint(self) -> str:
+        """SHA-256 (hex) of the whole dataset: `image_fingerprint` and the labels
+        (``presses.parquet``), so that labels changed after training are another dataset."""
+        if self._fingerprint is None:
+            h = hashlib.sha256(self.image_fingerprint().encode())
+            h.update(_read_bytes(self.root / PRESSES))
             self._fingerprint = h.hexdigest()
         return self._fingerprint
+
+
+def _read_bytes(path: Path) -> bytes:
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise UserError(f"{path}: unreadable ({exc.strerror or exc})") from None
 
 
 def _require(df: pd.DataFrame, cols: list[str], path: Path) -> None:
@@ -131,7 +150,8 @@ def read_manifest(root: Path, require_complete: bool = True) -> dict:
 
     Raises:
         UserError: no such folder, no manifest (an interrupted run is named as such), invalid
-            JSON, or (with `require_complete`) a dataset not marked complete.
+            JSON or not an object, a `format_version` this version does not read, or (with
+            `require_complete`) a dataset not marked complete.
     """
     man_path = root / MANIFEST
     if not root.is_dir():
@@ -142,15 +162,70 @@ def read_manifest(root: Path, require_complete: bool = True) -> dict:
                             "`vistac generate --resume`)")
         raise UserError(f"{man_path}: missing (not a vistac dataset?)")
     try:
-        manifest = json.loads(man_path.read_text())
-    except json.JSONDecodeError as exc:
-        raise UserError(f"{man_path}: not valid JSON ({exc})") from exc
+        manifest = json.loads(_read_bytes(man_path))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise UserError(f"{man_path}: not valid JSON ({exc}); make the dataset again") from None
+    if not isinstance(manifest, dict):
+        raise UserError(f"{man_path}: not a JSON object; make the dataset again")
+    version = manifest.get("format_version")
+    if version != FORMAT_VERSION or isinstance(version, bool):
+        what = "missing" if version is None else f"{str(version)[:40]!r}"
+        newer = isinstance(version, int) and not isinstance(version, bool) \
+            and version > FORMAT_VERSION
+        raise UserError(f"{man_path}: format_version {what} is not {FORMAT_VERSION}, the one "
+                        "this vistac reads; " + ("update vistac" if newer else
+                                                 "make the dataset again with this vistac"))
     if require_complete and manifest.get("complete") is not True:
         raise UserError(
             f"{man_path}: dataset is not complete (generation unfinished or interrupted; "
             "finish it with `vistac generate --resume` first)"
         )
     return manifest
+
+
+LABEL_TOLERANCE = 1e-3
+"""Largest difference of a label's length from 1 (labels are written as float64 unit vectors)."""
+
+
+def _read_table(path: Path, types: dict[str, str]) -> pd.DataFrame:
+    """A dataset table, its columns of `types` (name -> ``int``, ``float`` or ``str``) present
+    and of that kind.
+
+    Raises:
+        UserError: a missing, truncated or non-Parquet file, a missing or mistyped column.
+    """
+    if not path.is_file():
+        raise UserError(f"{path}: missing; make the dataset again")
+    try:
+        frame = pd.read_parquet(path)
+    except Exception as exc:  # pyarrow's errors of a damaged file have no common base
+        reason = " ".join(str(exc).split())[:160] or type(exc).__name__
+        raise UserError(f"{path}: unreadable ({reason}); make the dataset again") from None
+    _require(frame, list(types), path)
+    check = {"int": pd.api.types.is_integer_dtype, "float": pd.api.types.is_numeric_dtype,
+             "str": lambda s: pd.api.types.is_string_dtype(s) or s.dtype == object}
+    for col, kind in types.items():
+        series = frame[col]
+        ok = check[kind](series) and not pd.api.types.is_bool_dtype(series)
+        if ok and kind == "str":
+            ok = bool(series.map(lambda v: isinstance(v, str)).all())
+        if not ok:
+            raise UserError(f"{path}: column {col} holds {series.dtype}, not {kind} values; "
+                            "make the dataset again")
+    return frame
+
+
+def _check_image_names(configs: pd.DataFrame, path: Path) -> None:
+    """Every image is a plain file name (no folder part, nothing empty) and appears once."""
+    names = configs["image"]
+    bad = names.map(lambda n: not n or "/" in n or "\\" in n or n in (".", ".."))
+    if bad.any():
+        i = int(np.flatnonzero(bad.to_numpy())[0])
+        raise UserError(f"{path}: row {i}: image {names.iat[i][:80]!r} is not a file name in "
+                        f"{IMAGES}/")
+    if names.duplicated().any():
+        raise UserError(f"{path}: image {names[names.duplicated()].iat[0]!r} belongs to more "
+                        "than one configuration")
 
 
 def open_dataset(root: str | Path, require_complete: bool = True) -> DatasetTables:
@@ -164,19 +239,16 @@ def open_dataset(root: str | Path, require_complete: bool = True) -> DatasetTabl
         The checked tables, configurations sorted by `config_id`, with the per-finger cones.
 
     Raises:
-        UserError: A missing file or column, an unfinished dataset, a configuration without
-            presses, a non-finite or non-unit label (file, row and reason in the message).
+        UserError: A missing, damaged or mistyped file or column, an unfinished dataset, a
+            configuration without presses, presses of an unknown configuration, a non-finite or
+            non-unit label (file, row and reason in the message).
     """
     root = Path(root)
     manifest = read_manifest(root, require_complete)
     cpath, ppath = root / CONFIGS, root / PRESSES
-    for p in (cpath, ppath):
-        if not p.exists():
-            raise UserError(f"{p}: missing")
-    configs = pd.read_parquet(cpath)
-    presses = pd.read_parquet(ppath)
-    _require(configs, ["config_id", "image", "split"], cpath)
-    _require(presses, ["config_id", "repeat", *LABEL_COLUMNS], ppath)
+    configs = _read_table(cpath, {"config_id": "int", "image": "str", "split": "str"})
+    presses = _read_table(ppath, {"config_id": "int", "repeat": "int",
+                                  **dict.fromkeys(LABEL_COLUMNS, "float")})
     if configs["config_id"].duplicated().any():
         dup = configs.loc[configs["config_id"].duplicated(), "config_id"].iat[0]
         raise UserError(f"{cpath}: config_id {dup} appears more than once")
@@ -184,8 +256,10 @@ def open_dataset(root: str | Path, require_complete: bool = True) -> DatasetTabl
     if bad_split.any():
         i = int(np.flatnonzero(bad_split)[0])
         raise UserError(
-            f"{cpath}: row {i}: split {configs['split'].iat[i]!r} is not train/val/test"
+            f"{cpath}: row {i}: split {str(configs['split'].iat[i])[:40]!r} is not "
+            "train/val/test"
         )
+    _check_image_names(configs, cpath)
     configs = configs.sort_values("config_id", kind="stable").reset_index(drop=True)
     labels = presses[LABEL_COLUMNS].to_numpy(float)
     if not np.isfinite(labels).all():
@@ -194,14 +268,19 @@ def open_dataset(root: str | Path, require_complete: bool = True) -> DatasetTabl
     for f in FINGERS:
         r_y, r_z = label_columns(f)
         norms = np.hypot(presses[r_y], presses[r_z]).to_numpy()
-        bad = np.abs(norms - 1) > 1e-3
+        bad = np.abs(norms - 1) > LABEL_TOLERANCE
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise UserError(f"{ppath}: row {i}: ({f}) label (r_y, r_z) is not a unit vector")
+            raise UserError(f"{ppath}: row {i}: ({f}) label (r_y, r_z) is not a unit vector "
+                            f"(length {norms[i]:.4g})")
     known = set(configs["config_id"].tolist())
     stray = sorted(set(presses["config_id"].tolist()) - known)
     if stray:
         raise UserError(f"{ppath}: presses of unknown config_id {stray[0]}")
+    if presses[["config_id", "repeat"]].duplicated().any():
+        i = int(np.flatnonzero(presses[["config_id", "repeat"]].duplicated().to_numpy())[0])
+        raise UserError(f"{ppath}: row {i}: config_id {presses['config_id'].iat[i]} repeat "
+                        f"{presses['repeat'].iat[i]} appears more than once")
     presses = presses.sort_values(["config_id", "repeat"], kind="stable").reset_index(drop=True)
     groups = {int(k): g.index.to_numpy() for k, g in presses.groupby("config_id")}
     cones: dict[str, list[np.ndarray]] = {f: [] for f in FINGERS}

@@ -235,9 +235,27 @@ class FingertipTable:
 def _cache_path(tables: DatasetTables, cfg: LocatorCfg, cache_dir: Path | None) -> Path:
     h = hashlib.sha256()
     h.update(json.dumps({"v": LOCATOR_VERSION, **asdict(cfg)}, sort_keys=True).encode())
-    h.update(tables.fingerprint().encode())
+    h.update(tables.image_fingerprint().encode())  # labels do not move a fingertip
     folder = cache_dir if cache_dir is not None else tables.root / "cache"
     return Path(folder) / f"fingertips-{h.hexdigest()[:20]}.parquet"
+
+
+def _read_cache(path: Path, tables: DatasetTables) -> FingertipTable | None:
+    """The cached table at `path`, or None when absent or damaged (truncated, other columns,
+    other configurations): a damaged cache is located again and rewritten, never an error."""
+    if not path.is_file():
+        return None
+    try:
+        frame = pd.read_parquet(path)
+        cols = ["config_id", *(f"{f}_{k}" for f in FINGERS for k in (*FIELDS, "ok", "reason"))]
+        ids = frame["config_id"].to_numpy()
+        if not all(c in frame for c in cols) or len(frame) != len(tables.configs) \
+                or not (ids == tables.configs["config_id"].to_numpy()).all() \
+                or not all(frame[f"{f}_ok"].dtype == bool for f in FINGERS):
+            return None
+    except Exception:  # a damaged file: pyarrow's errors have no common base
+        return None
+    return FingertipTable(frame)
 
 
 def fingertip_table(tables: DatasetTables, cfg: LocatorCfg = LocatorCfg(),
@@ -251,8 +269,9 @@ def fingertip_table(tables: DatasetTables, cfg: LocatorCfg = LocatorCfg(),
         UserError: An unreadable image or an unwritable cache folder.
     """
     path = _cache_path(tables, cfg, Path(cache_dir) if cache_dir is not None else None)
-    if path.exists():
-        return FingertipTable(pd.read_parquet(path))
+    cached = _read_cache(path, tables)
+    if cached is not None:
+        return cached
     colours = {f: tables.finger_rgb(f) for f in FINGERS}
     rows = []
     for row in tqdm(range(len(tables.configs)), desc="locating fingertips", unit="img",

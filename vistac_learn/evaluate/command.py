@@ -14,6 +14,7 @@ from vistac.dataset import read_manifest
 from vistac.dataset.files import check_out_dir
 from vistac.errors import UserError
 from vistac_learn.data.samples import FINGER_CHOICES, ROTATION_MODES, RotationCfg
+from vistac_learn.data.tip_coverage import MAX_MISSING_PCT
 from vistac_learn.train.config import DEVICES
 
 
@@ -39,6 +40,9 @@ class EvaluateCfg(Config):
     device: str | None = param(None, choices=DEVICES, help="override the run's device")
     cross_dataset: bool = param(False, help="score the run on a --data other than the one it "
                                 "was trained on")
+    max_missing_pct: float = param(MAX_MISSING_PCT, ge=0, le=100, help="refuse to score a "
+                                   "split when the fingertips of more than this share (%%) of "
+                                   "its configurations are not found in their images")
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -91,11 +95,14 @@ def _handler(args: argparse.Namespace) -> int:
     if cfg.baseline:
         res = evaluate_baseline(cfg.data, cfg.out_dir, cfg.split, cfg.finger,
                                 RotationCfg(cfg.rotations, cfg.n_rotations), cfg.tta,
-                                not cfg.no_plots, progress=True)
+                                not cfg.no_plots, progress=True,
+                                max_missing_pct=cfg.max_missing_pct)
     else:
         res = evaluate_run(cfg.run, cfg.data, cfg.split, cfg.tta, cfg.checkpoint, cfg.out,
                            not cfg.no_plots, cfg.device, progress=True,
-                           cross_dataset=cfg.cross_dataset)
+                           cross_dataset=cfg.cross_dataset, max_missing_pct=cfg.max_missing_pct)
+    if res.get("fingertips_line"):
+        print(res["fingertips_line"])
     print(f"{res['n_predictions']} predictions of {res['n_configs']} configurations; "
           f"results in {cfg.out_dir}")
     return 0

@@ -29,10 +29,11 @@ from vistac.dataset import open_dataset
 from vistac.errors import UserError
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import RotationCfg, fingers_of
+from vistac_learn.data.tip_coverage import MAX_MISSING_PCT, tip_coverage
 from vistac_learn.evaluate import plots
 from vistac_learn.evaluate.geometric import GeometricCfg, baseline_predictions
 from vistac_learn.metrics.scoring import average_over_rotations, format_table, predict, score
-from vistac_learn.train.checkpoints import load_checkpoint
+from vistac_learn.train.checkpoints import load_checkpoint, load_weights
 from vistac_learn.train.config import (
     TrainCfg,
     build_model,
@@ -41,16 +42,19 @@ from vistac_learn.train.config import (
     input_size,
     resolve_device,
 )
+from vistac_learn.train.run_files import read_run_config, run_settings
+
+RETRAIN = "train the run again (`vistac train` into this folder without --resume)"
 
 
 def load_run(run: str | Path) -> tuple[TrainCfg, dict]:
-    """The `TrainCfg` and the whole ``config.json`` of a run folder."""
-    path = Path(run) / "config.json"
-    if not path.exists():
-        raise UserError(f"{path}: missing (not a vistac run folder)")
-    meta = json.loads(path.read_text())
-    known = {f.name for f in dataclasses.fields(TrainCfg)}
-    return TrainCfg(**{k: v for k, v in meta["train"].items() if k in known}), meta
+    """The `TrainCfg` and the whole ``config.json`` of a run folder.
+
+    Raises:
+        UserError: no run there, or a damaged ``config.json`` (what to do in the message).
+    """
+    meta = read_run_config(Path(run), RETRAIN)
+    return run_settings(Path(run), meta, RETRAIN), meta
 
 
 def load_model(
@@ -60,9 +64,9 @@ def load_model(
     path = Path(run) / "checkpoints" / f"{checkpoint}.pt"
     if not path.exists():
         raise UserError(f"{path}: missing (has the run finished an epoch?)")
-    ck = load_checkpoint(path, device)
+    ck = load_checkpoint(path, ("model", "epoch"), RETRAIN, map_location=device)
     model = build_model(cfg)
-    model.load_state_dict(ck["model"])
+    load_weights(model, ck["model"], path, RETRAIN)
     return model.to(device), int(ck["epoch"])
 
 
@@ -140,6 +144,7 @@ def evaluate_run(
     device: str | None = None,
     progress: bool = False,
     cross_dataset: bool = False,
+    max_missing_pct: float = MAX_MISSING_PCT,
 ) -> dict:
     """Score a run's model on a split.
 
@@ -155,9 +160,14 @@ def evaluate_run(
         device: Override the run's device.
         progress: Show progress bars.
         cross_dataset: Allow a dataset other than the run's (see `run_dataset`).
+        max_missing_pct: Refuse a split of which more than this share (%) of the
+            configurations has a fingertip the locator does not find (tip view).
 
     Returns:
         The content of ``metrics.json``.
+
+    Raises:
+        UserError: a damaged run or dataset, too many fingertips not found.
     """
     cfg, meta = load_run(run)
     dev = resolve_device(device or cfg.device)
@@ -167,6 +177,10 @@ def evaluate_run(
     size = input_size(cfg, model)
     tips = fingertip_table(tables, cache_dir=cfg.cache_dir, progress=progress) \
         if build_view(cfg).needs_tips else None
+    coverage = None
+    if tips is not None:
+        coverage = tip_coverage(tables, tips, tables.rows(split), fingers_of(cfg.finger), split)
+        coverage.check(max_missing_pct)
     ds = build_samples(cfg, tables, split, size, tips)
     t0 = time.perf_counter()
     try:
@@ -189,7 +203,9 @@ def evaluate_run(
             "fingerprint": tables.fingerprint(), "split": split, "tta": tta,
             "checkpoint": checkpoint, "epoch": epoch, "device": str(dev),
             "images_per_s": len(ds) * (2 if tta else 1) / max(elapsed, 1e-9),
-            "n_rotations": ds.rotations.count, "fingers_not_found": lost}
+            "n_rotations": ds.rotations.count, "fingers_not_found": lost,
+            "fingertips": coverage.as_dict() if coverage is not None else None,
+            "fingertips_line": coverage.line() if coverage is not None else None}
     out = Path(out) if out is not None else Path(run) / "eval" / (split + ("-tta" if tta else ""))
     label = f"{cfg.model}, {cfg.variant}" + (", TTA" if tta else "")
     return _write_outputs(out, label, pred, tables, ds.rows, item_row, item_rot,
@@ -206,6 +222,7 @@ def evaluate_baseline(
     make_plots: bool = True,
     cfg: GeometricCfg | None = None,
     progress: bool = False,
+    max_missing_pct: float = MAX_MISSING_PCT,
 ) -> dict:
     """Score the geometric baseline on a split (same metrics and outputs as `evaluate_run`).
 
@@ -220,6 +237,8 @@ def evaluate_baseline(
         make_plots: Write the PNG figures.
         cfg: Baseline settings (default `GeometricCfg()`).
         progress: Show a progress bar.
+        max_missing_pct: Refuse a split of which more than this share (%) of the
+            configurations has a fingertip the locator does not find.
 
     Returns:
         The content of ``metrics.json``.
@@ -229,6 +248,9 @@ def evaluate_baseline(
     tables = open_dataset(data)
     fingers = fingers_of(finger)
     rows = tables.rows(split)
+    coverage = tip_coverage(tables, fingertip_table(tables, cfg.locator, progress=progress),
+                            rows, fingers, split)
+    coverage.check(max_missing_pct)
     t0 = time.perf_counter()
     pred, item_row, item_rot, failures = baseline_predictions(
         tables, rows, fingers, rotations, cfg, progress)
@@ -238,6 +260,7 @@ def evaluate_baseline(
         item_rot = np.full(len(item_row), -1)
     info = {"kind": "baseline", "baseline": "geometric", "settings": dataclasses.asdict(cfg),
             "data": str(data), "split": split, "tta": tta, "failures": failures,
+            "fingertips": coverage.as_dict(), "fingertips_line": coverage.line(),
             "images_per_s": len(rows) * rotations.count / max(elapsed, 1e-9),
             "n_rotations": rotations.count}
     label = "geometric baseline" + (", TTA" if tta else "")

@@ -8,6 +8,7 @@ runs (e.g. ``--epochs``, ``--model``, ``--protocol``), as in `vistac tune`.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 
 from vistac.config import (
@@ -22,7 +23,7 @@ from vistac.config import (
 from vistac.dataset.files import check_out_dir
 from vistac.errors import UserError
 from vistac_learn.train.command import OPTIONS
-from vistac_learn.train.config import PROTOCOLS, TrainCfg, protocol_cfg
+from vistac_learn.train.config import PROTOCOLS, TrainCfg, check_data, protocol_cfg
 
 # what each cell sets itself, so not an option of the experiments
 PER_CELL = ("seed", "train_fraction", "init", "freeze", "train_split", "val_split")
@@ -111,6 +112,9 @@ def _sim2real(args: argparse.Namespace) -> int:
     cfg = S.resolved(cfg)
     check_out_dir(cfg.out)
     base = base_cfg(args, cfg.real)
+    for data in (cfg.sim, cfg.real):
+        for line in check_data(dataclasses.replace(base, data=data), not args.quiet):
+            print(line, flush=True)
     rows = S.run_sim2real(cfg, base, max_cells=_max_cells(args), progress=not args.quiet)
     return _done(args.out, len(rows), cfg.seeds * (1 + 2 * len(cfg.fractions)))
 
@@ -124,6 +128,8 @@ def _label_noise(args: argparse.Namespace) -> int:
     cfg = L.resolved(cfg)
     check_out_dir(cfg.out)
     base = base_cfg(args, cfg.data)
+    for line in check_data(base, not args.quiet):
+        print(line, flush=True)
     rows = L.run_label_noise(cfg, base, max_cells=_max_cells(args), progress=not args.quiet)
     return _done(args.out, len(rows), len(cfg.levels) * cfg.seeds)
 

@@ -15,15 +15,17 @@ every parameter of the feature layers (names containing ``features``) fixed.
 
 from __future__ import annotations
 
-import json
+import io
 import os
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import torch
 
-from vistac.dataset.files import temporary_path
+from vistac.dataset.files import atomic_write_bytes
 from vistac.errors import UserError
+from vistac_learn.train.run_files import read_run_config
 
 
 def plain(obj):
@@ -42,44 +44,59 @@ def plain(obj):
 
 
 def atomic_save(obj: dict, path: Path) -> None:
-    """Save `obj` as plain data (see `plain`) through a temporary file and a rename (a kill
-    leaves the old file)."""
-    tmp = temporary_path(path)
-    try:
-        torch.save(plain(obj), tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    """`torch.save` of `obj` as plain data (see `plain`) through a temporary file and a rename
+    (a kill leaves the old file).
+
+    The checkpoint is serialised in memory first, so that a failing write (a full disk) is the
+    `OSError` of Python's own file write, not an error from inside torch's writer.
+    """
+    buf = io.BytesIO()
+    torch.save(plain(obj), buf)
+    atomic_write_bytes(path, buf.getvalue())
 
 
-def load_checkpoint(path: Path, device="cpu", what: str = "") -> dict:
-    """Read a checkpoint safely (``weights_only=True``: tensors and plain data, no code).
+def load_checkpoint(path: Path, keys: Sequence[str], fix: str, map_location="cpu") -> dict:
+    """A checkpoint written by `atomic_save`, read safely and checked: a dict holding `keys`.
+
+    ``weights_only=True``: tensors and plain data load, any other pickled object is refused
+    unrun.
 
     Args:
         path: The ``.pt`` file.
-        device: Where tensors are mapped.
-        what: The option the file came from (``--init``), to name it in errors.
+        keys: Entries it must hold.
+        fix: What the user can do about a damaged file (the end of the error's line).
+        map_location: Where tensors go.
 
     Raises:
-        UserError: the file is missing, truncated, not a checkpoint, or carries pickled objects
-            other than tensors and plain data.
+        UserError: the file is missing, truncated, not a checkpoint, lacks an entry or
+            carries pickled objects other than tensors and plain data.
     """
-    name = f"{what} {path}" if what else str(path)
-    if not Path(path).is_file():
-        raise UserError(f"{name}: missing checkpoint")
     try:
-        ck = torch.load(path, map_location=device, weights_only=True)
-    except Exception as exc:  # noqa: BLE001 - a foreign, truncated or unsafe file
+        ck = torch.load(path, map_location=map_location, weights_only=True)
+    except FileNotFoundError:
+        raise UserError(f"{path}: missing; {fix}") from None
+    except Exception as exc:  # truncated or foreign bytes: zipfile, pickle and torch errors
         reason = " ".join(str(exc).split())
         if "weights_only" in reason or "Unsupported global" in reason:
-            reason = "it holds pickled objects other than tensors and plain data (refused: " \
-                     "loading them could run code)"
-        else:
-            reason = f"unreadable ({reason[:160]})"
-        raise UserError(f"{name}: {reason}; delete it or rerun without --resume") from None
-    if not isinstance(ck, dict) or not isinstance(ck.get("model"), dict):
-        raise UserError(f"{name}: not a vistac checkpoint (no model weights)")
+            raise UserError(f"{path}: holds pickled objects other than tensors and plain data "
+                            f"(refused: loading them could run code); {fix}") from None
+        reason = reason[:120] or type(exc).__name__
+        raise UserError(f"{path}: not a readable checkpoint ({reason}); {fix}") from None
+    missing = [k for k in keys if not isinstance(ck, dict) or k not in ck]
+    if missing:
+        raise UserError(f"{path}: not a checkpoint of this kind (no {', '.join(missing)}); "
+                        f"{fix}")
     return ck
+
+
+def load_weights(model: torch.nn.Module, state: dict, path: Path, fix: str) -> None:
+    """`model.load_state_dict(state)`, a mismatch (other model, damaged tensors) one line."""
+    try:
+        model.load_state_dict(state)
+    except (RuntimeError, TypeError, AttributeError) as exc:
+        reason = " ".join(str(exc).split())[:120]
+        raise UserError(f"{path}: weights do not fit the run's model ({reason}); {fix}") \
+            from None
 
 
 def is_frozen(name: str, freeze: str) -> bool:
@@ -107,12 +124,18 @@ def init_from_run(model: torch.nn.Module, cfg) -> dict:
     if not (run / "config.json").exists() or not path.exists():
         raise UserError(f"--init {run}: not a finished run (needs config.json and "
                         "checkpoints/best.pt)")
-    saved = load_checkpoint(path, what="--init")["model"]
+    try:
+        saved = load_checkpoint(path, ("model",), "choose another --init run")["model"]
+        src = read_run_config(run, "choose another --init run")["train"]
+    except UserError as exc:
+        raise UserError(f"--init {exc}") from None
+    if not isinstance(saved, dict):
+        raise UserError(f"--init {path}: not a checkpoint of model weights; choose another run")
     own = model.state_dict()
-    copied = [k for k, v in saved.items() if k in own and own[k].shape == v.shape]
+    copied = [k for k, v in saved.items()
+              if k in own and isinstance(v, torch.Tensor) and own[k].shape == v.shape]
     fresh = [k for k in own if k not in copied]
     if not copied:
-        src = json.loads((run / "config.json").read_text())["train"]
         raise UserError(f"--init {run}: its model ({src.get('model')}, {src.get('variant')}) "
                         f"shares no weights with --model {cfg.model} --variant {cfg.variant}")
     own.update({k: saved[k] for k in copied})

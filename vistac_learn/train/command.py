@@ -66,10 +66,27 @@ def check_paths(cfg: TrainCfg) -> None:
 
 def _handler(args: argparse.Namespace) -> int:
     from vistac_learn.train.job import JobCfg, run_job
+    from vistac_learn.train.loop import finished
 
     cfg = options_cfg(args)
     check_paths(cfg)
+    done = args.resume and finished(Path(cfg.out), cfg.epochs)
     res = run_job(JobCfg(cfg, resume="yes" if args.resume else "no", progress=not args.quiet))
+    for line in fingertip_lines(Path(res.run)):
+        print(line)
+    if done:
+        print(f"{res.run}: already trained for {res.epochs} epochs; nothing to do (best epoch "
+              f"{res.best_epoch}, validation median angle {res.objective:.2f} deg)")
+        return 0
     print(f"run written to {res.run} (best epoch {res.best_epoch}, validation median angle "
           f"{res.objective:.2f} deg)")
     return 0
+
+
+def fingertip_lines(run: Path) -> list[str]:
+    """What a run's ``config.json`` says of the fingertips not found, one line per split."""
+    from vistac_learn.data.tip_coverage import TipCoverage
+    from vistac_learn.train.run_files import read_run_config
+
+    counts = read_run_config(run, "train it again").get("fingertips") or {}
+    return [TipCoverage.from_dict(c).line() for c in counts.values()]

@@ -35,6 +35,7 @@ from vistac_learn.data.samples import (
     SampleSet,
     fingers_of,
 )
+from vistac_learn.data.tip_coverage import MAX_MISSING_PCT, TipCoverage, tip_coverage
 from vistac_learn.data.views import TIP_VIEW, VIEWS, View, make_view
 from vistac_learn.models import create_model, list_models
 from vistac_learn.models.tipnet import PerFinger
@@ -98,6 +99,9 @@ class TrainCfg(Config):
     checkpoint_every: int = param(0, ge=0, help="also checkpoint every N batches (0: at epoch "
                                   "ends only)")
     eval_batch_size: int = param(256, ge=1, help="samples per forward pass when scoring")
+    max_missing_pct: float = param(MAX_MISSING_PCT, ge=0, le=100, help="tip view: refuse to "
+                                   "train when the fingertips of more than this share (%%) of "
+                                   "a split's configurations are not found in their images")
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -225,3 +229,40 @@ def build_samples(cfg: TrainCfg, tables: DatasetTables, split: str, size: int,
     return SampleSet(tables, rows, view, size, fingers_of(cfg.finger),
                      cfg.target if train else "mean", cfg.seed, cfg.rotation_cfg(),
                      cfg.augment_cfg() if train else None, tips)
+
+
+def run_coverage(cfg: TrainCfg, tables: DatasetTables, tips: FingertipTable | None
+                 ) -> list[TipCoverage]:
+    """The fingertips not found in the run's training rows and validation split (nothing for
+    views that locate none), each split checked against ``cfg.max_missing_pct``.
+
+    Raises:
+        UserError: a split above the threshold (how many, an example image).
+    """
+    if tips is None:
+        return []
+    fingers = fingers_of(cfg.finger)
+    rows = {cfg.train_split: subset_rows(tables.rows(cfg.train_split), cfg.train_fraction,
+                                         cfg.seed),
+            cfg.val_split: tables.rows(cfg.val_split)}
+    out = [tip_coverage(tables, tips, r, fingers, split) for split, r in rows.items()]
+    for c in out:
+        c.check(cfg.max_missing_pct)
+    return out
+
+
+def check_data(cfg: TrainCfg, progress: bool = False) -> list[str]:
+    """Before a tuning or an experiment: the run's dataset opens and its fingertips (located
+    into the cache, for views that need them) are found often enough; one line per split.
+
+    Raises:
+        UserError: a damaged dataset, a split above ``cfg.max_missing_pct``.
+    """
+    from vistac.dataset import open_dataset
+    from vistac_learn.data.fingertips import fingertip_table
+
+    if not build_view(cfg).needs_tips:
+        return []
+    tables = open_dataset(cfg.data)
+    tips = fingertip_table(tables, cache_dir=cfg.cache_dir, progress=progress)
+    return [f"{cfg.data}: {c.line()}" for c in run_coverage(cfg, tables, tips)]

@@ -12,7 +12,6 @@ the run's fingers) at the epoch the run selected: the test split never enters it
 from __future__ import annotations
 
 import contextlib
-import csv
 import io
 import time
 from collections.abc import Callable, Iterable, Iterator
@@ -21,10 +20,12 @@ from pathlib import Path
 from typing import Any
 
 from vistac.config import Config, param
+from vistac.errors import UserError
 from vistac_learn.data.samples import fingers_of
 from vistac_learn.train.checkpoints import load_checkpoint
 from vistac_learn.train.config import TrainCfg
-from vistac_learn.train.loop import TrainingDiverged, train
+from vistac_learn.train.loop import BEST_KEYS, RESTART, TrainingDiverged, damage, train
+from vistac_learn.train.run_files import read_metrics
 
 OBJECTIVE = "angle_to_mean_median_deg"
 RESUME = ("no", "yes", "auto")
@@ -94,11 +95,14 @@ def run_job(cfg: JobCfg) -> JobResult:
     t0 = time.perf_counter()
     out = Path(cfg.train.out)
     started = (out / "config.json").exists()
-    resume = cfg.resume == "yes" or (cfg.resume == "auto" and started)
+    resume = cfg.resume == "yes" or (cfg.resume == "auto" and started and not damage(out))
     train(cfg.train, resume=resume, progress=cfg.progress)
-    rows = _metrics_rows(out / "metrics.csv")
-    best = load_checkpoint(out / "checkpoints" / "best.pt")["epoch"]
-    row = next(r for r in rows if int(r["epoch"]) == best)
+    rows = read_metrics(out / "metrics.csv", RESTART)
+    best = load_checkpoint(out / "checkpoints" / "best.pt", BEST_KEYS, RESTART)["epoch"]
+    row = next((r for r in rows if int(r["epoch"]) == best), None)
+    if row is None:
+        raise UserError(f"{out / 'metrics.csv'}: no row of epoch {best}, the best checkpoint's; "
+                        f"{RESTART}")
     fingers = fingers_of(cfg.train.finger)
     objective = sum(row[f"val_{f}_{OBJECTIVE}"] for f in fingers) / len(fingers)
     scores = {}
@@ -111,11 +115,6 @@ def run_job(cfg: JobCfg) -> JobResult:
                      float(rows[0]["train_loss"]),
                      {k: v for k, v in row.items() if k.startswith("val_")}, scores,
                      time.perf_counter() - t0)
-
-
-def _metrics_rows(path: Path) -> list[dict[str, float]]:
-    with path.open() as fh:
-        return [{k: float(v) for k, v in r.items()} for r in csv.DictReader(fh)]
 
 
 class LocalRunner:

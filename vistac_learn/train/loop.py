@@ -24,6 +24,7 @@ are bit-identical. A run killed before its first checkpoint is simply started ag
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import platform
@@ -37,7 +38,7 @@ import torch
 from tqdm import tqdm
 
 from vistac.dataset import open_dataset
-from vistac.dataset.files import atomic_write_json, remove_stale_temporaries
+from vistac.dataset.files import atomic_write_bytes, atomic_write_json, remove_stale_temporaries
 from vistac.errors import UserError
 from vistac.folder_lock import hold
 from vistac_learn.data.fingertips import fingertip_table
@@ -48,6 +49,7 @@ from vistac_learn.train.checkpoints import (
     atomic_save,
     init_from_run,
     load_checkpoint,
+    load_weights,
     trainable_parameters,
 )
 from vistac_learn.train.config import (
@@ -57,14 +59,32 @@ from vistac_learn.train.config import (
     build_view,
     input_size,
     resolve_device,
+    run_coverage,
 )
+from vistac_learn.train.memory import check_fits
+from vistac_learn.train.run_files import read_run_config, run_settings
 
 HIGHER_IS_BETTER = frozenset({"correct_y_pct", "in_cone_pct", "n_in_cone"})
 RUN_FILES = frozenset({"config.json", "metrics.csv", "checkpoints", "eval"})
 
 
+LAST_KEYS = ("model", "optimizer", "schedule", "torch_rng", "epoch", "batch", "run_sum",
+             "run_n", "history", "best_value", "best_epoch")
+BEST_KEYS = ("model", "epoch")
+RESTART = "rerun without --resume to start the run over"
+DIVERGED_LOSS = 100.0
+"""A loss above this is divergence. Targets are unit vectors: a model that predicts the
+opposite direction everywhere has an MSE of 2, one predicting zero of 0.5; a loss of 100 needs
+predictions about ten times longer than any label, which no converging run makes."""
+
+
+def diverged(loss: float) -> bool:
+    """Whether a loss is not finite or above `DIVERGED_LOSS`."""
+    return not math.isfinite(loss) or loss > DIVERGED_LOSS
+
+
 class TrainingDiverged(UserError):
-    """A loss or a prediction that is not finite: the run stops, naming the epoch."""
+    """A loss that is not finite or above `DIVERGED_LOSS`: the run stops, naming the epoch."""
 
     def __init__(self, epoch: int, what: str, value: float, lr: float):
         super().__init__(f"epoch {epoch}: the {what} is {value}; training diverged; restart "
@@ -93,11 +113,17 @@ def _append_rows(path: Path, rows: list[dict]) -> None:
         w.writerows(rows)
 
 
-def _logged_epochs(path: Path) -> set[int]:
-    if not path.exists():
-        return set()
-    with path.open() as fh:
-        return {int(r["epoch"]) for r in csv.DictReader(fh)}
+def _restore_metrics(path: Path, history: list[dict]) -> None:
+    """Make the metrics CSV hold exactly the checkpoint's `history`: rows a kill kept from
+    being appended are added, a cut or edited table is written again."""
+    buf = io.StringIO(newline="")
+    if history:
+        w = csv.DictWriter(buf, fieldnames=list(history[0].keys()))
+        w.writeheader()
+        w.writerows(history)
+    want = buf.getvalue().encode()
+    if not path.exists() or path.read_bytes() != want:
+        atomic_write_bytes(path, want)
 
 
 def masked_mse(pred: torch.Tensor, target: torch.Tensor, found: torch.Tensor) -> torch.Tensor:
@@ -115,9 +141,9 @@ def evaluate_loss(model, ds, device, batch_size: int) -> tuple[float, np.ndarray
 
 
 def _check_resume(cfg: TrainCfg, out: Path, fingerprint: str) -> None:
-    saved = json.loads((out / "config.json").read_text())
+    saved = read_run_config(out, RESTART)
     mine = asdict(cfg)
-    diff = [k for k in mine if k not in ("epochs", "out", "data", "cache_dir")
+    diff = [k for k in mine if k not in ("epochs", "out", "data", "cache_dir", "max_missing_pct")
             and saved["train"].get(k) != mine[k]]
     if diff:
         raise UserError(f"{out / 'config.json'}: --resume with different settings "
@@ -182,7 +208,8 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
     started = last_path.exists()
     if resume and not started and not (out / "config.json").exists():
         raise UserError(f"{out}: no run to resume (no config.json); drop --resume to start one")
-    if not resume and started and _diverged(out):  # a rerun (with a lower lr) starts over
+    if not resume and started and (_diverged(out) or damage(out)):
+        # a rerun (with a lower lr, or over damaged files) starts over
         for p in (last_path, best_path, metrics_path):
             p.unlink(missing_ok=True)
         started = False
@@ -197,13 +224,18 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
     fingerprint = tables.fingerprint()
     if started:
         _check_resume(cfg, out, fingerprint)
+        ck = load_checkpoint(last_path, LAST_KEYS, RESTART, map_location=device)
+        if best_path.exists():
+            load_checkpoint(best_path, BEST_KEYS, RESTART)
     fingers = fingers_of(cfg.finger)
     model = build_model(cfg)
     init_note = init_from_run(model, cfg) if cfg.init and not started else None
     size = input_size(cfg, model)
     view = build_view(cfg)
+    check_fits(model, view.channels, size, cfg.batch_size, cfg.eval_batch_size, device)
     tips = fingertip_table(tables, cache_dir=cfg.cache_dir, progress=progress) \
         if view.needs_tips else None
+    coverage = run_coverage(cfg, tables, tips)  # refuses too many fingertips not found
     train_ds = build_samples(cfg, tables, cfg.train_split, size, tips, train=True)
     val_ds = build_samples(cfg, tables, cfg.val_split, size, tips)
     model.to(device)
@@ -215,26 +247,26 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
     best_value, best_epoch = None, None
     if started:
         remove_stale_temporaries(ckpt_dir)
-        ck = load_checkpoint(last_path, device)
-        model.load_state_dict(ck["model"])
-        opt.load_state_dict(ck["optimizer"])
-        sched.load_state_dict(ck["schedule"])
-        torch.set_rng_state(ck["torch_rng"])
+        try:
+            load_weights(model, ck["model"], last_path, RESTART)
+            opt.load_state_dict(ck["optimizer"])
+            sched.load_state_dict(ck["schedule"])
+            torch.set_rng_state(ck["torch_rng"])
+        except (ValueError, TypeError, KeyError, RuntimeError) as exc:
+            raise UserError(f"{last_path}: damaged state ({exc}); {RESTART}") from None
         if device.type == "cuda" and ck.get("cuda_rng") is not None:
             torch.cuda.set_rng_state_all(ck["cuda_rng"])
         start_epoch, start_batch = ck["epoch"], ck["batch"]
         run_sum, run_n = ck["run_sum"], ck["run_n"]
         history, best_value, best_epoch = ck["history"], ck["best_value"], ck["best_epoch"]
-        logged = _logged_epochs(metrics_path)
-        missing = [r for r in history if r["epoch"] not in logged]
-        if missing:  # killed between the checkpoint and the metrics append
-            _append_rows(metrics_path, missing)
+        _restore_metrics(metrics_path, history)  # a kill before an append, a damaged table
     else:  # a new run, or one killed before its first checkpoint: start (again) from scratch
         ckpt_dir.mkdir(parents=True, exist_ok=True)
         remove_stale_temporaries(ckpt_dir)
         metrics_path.unlink(missing_ok=True)
         atomic_write_json(out / "config.json", _run_meta(cfg, model, tables, fingerprint,
-                                                         train_ds, val_ds, device, init_note))
+                                                         train_ds, val_ds, device, init_note)
+                          | {"fingertips": {c.split: c.as_dict() for c in coverage}})
         if init_note and progress:
             tqdm.write(f"init: {init_note['summary']}")
 
@@ -262,7 +294,7 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
                 y = batch["target"].to(device)
                 opt.zero_grad(set_to_none=True)
                 loss = masked_mse(apply_model(model, batch, device), y, batch["found"].to(device))
-                if not torch.isfinite(loss):
+                if diverged(float(loss.detach())):
                     raise TrainingDiverged(epoch + 1, "training loss",
                                            float(loss.detach()), cfg.lr)
                 loss.backward()
@@ -280,7 +312,7 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
             bar.close()
             train_time = time.perf_counter() - t0
             val_loss, pred = evaluate_loss(model, val_ds, device, cfg.eval_batch_size)
-            if not np.isfinite(pred).all():
+            if not np.isfinite(pred).all() or diverged(val_loss):
                 raise TrainingDiverged(epoch + 1, "validation loss", val_loss, cfg.lr)
             row = {"epoch": epoch + 1, "train_loss": run_sum / max(run_n, 1),
                    "val_loss": val_loss, "lr": float(opt.param_groups[0]["lr"])}
@@ -315,11 +347,36 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
 
 
 def _diverged(out: Path) -> bool:
-    """Whether the run in `out` stopped on a non-finite loss."""
+    """Whether the run in `out` stopped on a diverging loss."""
     try:
         return bool(json.loads((out / "config.json").read_text()).get("diverged"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, AttributeError):
         return False
+
+
+def damage(out: Path) -> str | None:
+    """Why the started run in `out` cannot be continued (a damaged config.json or checkpoint),
+    or None (no run, or an intact one)."""
+    if not (out / "checkpoints" / "last.pt").exists():
+        return None
+    try:
+        run_settings(out, read_run_config(out, RESTART), RESTART)
+        load_checkpoint(out / "checkpoints" / "last.pt", LAST_KEYS, RESTART)
+        if (out / "checkpoints" / "best.pt").exists():
+            load_checkpoint(out / "checkpoints" / "best.pt", BEST_KEYS, RESTART)
+    except UserError as exc:
+        return str(exc)
+    return None
+
+
+def finished(out: Path, epochs: int) -> bool:
+    """Whether the run in `out` has trained `epochs` epochs (its last checkpoint is at the end
+    of the last one); False for no run or a damaged one."""
+    try:
+        ck = load_checkpoint(Path(out) / "checkpoints" / "last.pt", LAST_KEYS, RESTART)
+    except UserError:
+        return False
+    return ck["epoch"] >= epochs and ck["batch"] == 0
 
 
 def _train_mode(model: torch.nn.Module, freeze: str) -> None:

@@ -8,7 +8,7 @@ from vistac.config import HelpFormatter, add_options, from_options
 from vistac.engine import ENGINE_OPTIONS, EngineCfg, preflight
 from vistac.errors import UserError
 from vistac_learn.train.command import OPTIONS, check_paths, options_cfg
-from vistac_learn.train.config import PROTOCOLS, TrainCfg
+from vistac_learn.train.config import PROTOCOLS, TrainCfg, check_data
 from vistac_learn.tune.engines import TRIAL_OPTIONS, TrialCfg
 
 
@@ -45,7 +45,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
 
 
 def _handler(args: argparse.Namespace) -> int:
-    from vistac_learn.tune.driver import TuneCfg, check_folder, run_tune
+    from vistac_learn.tune.driver import TuneCfg, check_folder, no_success, run_tune
     from vistac_learn.tune.engines import tune_runner
     from vistac_learn.tune.space import load_space
 
@@ -71,6 +71,8 @@ def _handler(args: argparse.Namespace) -> int:
     except UserError as exc:
         raise UserError(f"--{str(exc).replace('seed:', 'tune-seed:')}") from None
     check_folder(cfg, base, space, args.resume)
+    for line in check_data(base, progress=not args.quiet):
+        print(line, flush=True)
     preflight(engine)
     with tune_runner(engine, base, trial, progress=not args.quiet) as runner:
         if engine.engine == "ray" and not args.quiet:
@@ -79,8 +81,11 @@ def _handler(args: argparse.Namespace) -> int:
                   f"CPU, {trial.trial_gpus:g} GPU each)", flush=True)
         res = run_tune(cfg, base, space, resume=args.resume, runner=runner,
                        progress=not args.quiet)
-    if res.best is not None:
-        params = ", ".join(f"{d.name}={res.best[d.name]:.4g}" for d in space.dims)
-        print(f"best of {len(res.rows)} trials: trial {res.best['trial']}, validation median "
-              f"angle {res.best['objective']:.2f} deg ({params}); {args.out}/best.json")
+    if res.best is None:
+        raise UserError(f"--out {args.out}: no trial succeeded ({no_success(res.rows)}); "
+                        "nothing is best (see trials.csv); narrow the space (e.g. lower lr "
+                        "bounds with --space) or check the data")
+    params = ", ".join(f"{d.name}={res.best[d.name]:.4g}" for d in space.dims)
+    print(f"best of {len(res.rows)} trials: trial {res.best['trial']}, validation median "
+          f"angle {res.best['objective']:.2f} deg ({params}); {args.out}/best.json")
     return 0

@@ -30,6 +30,7 @@ import dataclasses
 import io
 import json
 import math
+import shutil
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -103,18 +104,51 @@ def suggest(space: SpaceCfg, finished: list[dict], running: list[dict], trial: i
 
 
 def _read_rows(path: Path, space: SpaceCfg) -> list[dict[str, Any]]:
+    """The rows of ``trials.csv``, one per trial (a trial written twice counts once).
+
+    Raises:
+        UserError: a damaged file (what to do in the message).
+    """
     if not path.exists():
         return []
     types = {d.name: (int if d.type == "int" else float) for d in space.dims}
-    rows = []
-    with path.open() as fh:
-        for r in csv.DictReader(fh):
-            row = {k: types[k](v) for k, v in r.items() if k in types}
-            row |= {"trial": int(r["trial"]), "objective": float(r["objective"]),
-                    "status": r["status"], "best_epoch": int(r["best_epoch"]),
-                    "seconds": float(r["seconds"]), "run": r["run"]}
-            rows.append(row)
-    return rows
+    rows: dict[int, dict[str, Any]] = {}
+    try:
+        with path.open(newline="") as fh:
+            for r in csv.DictReader(fh):
+                row = {k: types[k](r[k]) for k in types}
+                row |= {"trial": int(r["trial"]), "objective": float(r["objective"]),
+                        "status": str(r["status"]), "best_epoch": int(r["best_epoch"]),
+                        "seconds": float(r["seconds"]), "run": str(r["run"])}
+                rows.setdefault(row["trial"], row)
+    except (OSError, UnicodeDecodeError, csv.Error, KeyError, TypeError, ValueError) as exc:
+        raise UserError(f"{path}: damaged ({type(exc).__name__}: {exc})") from None
+    return [rows[t] for t in sorted(rows)]
+
+
+def _read_pending(path: Path) -> dict[int, dict]:
+    """Trials suggested and not finished (``pending.json``): trial -> options.
+
+    Raises:
+        UserError: a damaged file.
+    """
+    if not path.exists():
+        return {}
+    try:
+        data = json.loads(path.read_bytes())
+        return {int(k): dict(v) for k, v in data.items()}
+    except (OSError, UnicodeDecodeError, AttributeError, TypeError, ValueError) as exc:
+        raise UserError(f"{path}: damaged ({type(exc).__name__})") from None
+
+
+def no_success(rows: list[dict[str, Any]]) -> str:
+    """Why no trial is best: ``N trials, all diverged`` or the statuses counted."""
+    statuses = sorted({r["status"] for r in rows})
+    if not rows:
+        return "no trial ran"
+    if len(statuses) == 1:
+        return f"{len(rows)} trial{'s' if len(rows) > 1 else ''}, all {statuses[0]}"
+    return ", ".join(f"{sum(r['status'] == s for r in rows)} {s}" for s in statuses)
 
 
 def _write_rows(path: Path, rows: list[dict[str, Any]], space: SpaceCfg) -> None:
@@ -141,10 +175,34 @@ def check_folder(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool) ->
     _check_folder(cfg, _meta(cfg, base, space), resume)
 
 
+TUNING_FILES = ("config.json", "trials.csv", "pending.json", "best.json", "convergence.png")
+
+
+def failed(out: Path) -> bool:
+    """Whether `out` holds a tuning whose every finished trial failed (none is best)."""
+    if (out / "best.json").exists() or not (out / "config.json").exists():
+        return False
+    try:
+        with (out / "trials.csv").open(newline="") as fh:
+            statuses = [r["status"] for r in csv.DictReader(fh)]
+    except (OSError, UnicodeDecodeError, csv.Error, KeyError):
+        return False
+    return bool(statuses) and "ok" not in statuses
+
+
+def _start_over(out: Path) -> None:
+    """Remove a failed tuning's files and trial folders (`failed`)."""
+    for name in TUNING_FILES:
+        (out / name).unlink(missing_ok=True)
+    shutil.rmtree(out / "trials", ignore_errors=True)
+
+
 def _check_folder(cfg: TuneCfg, meta: dict, resume: bool) -> None:
     out = Path(cfg.out)
     path = out / "config.json"
     if not resume:
+        if failed(out):
+            return  # a tuning without a successful trial: a rerun starts it over
         if path.exists():
             raise UserError(f"--out {out}: already holds a tuning; pass --resume or choose "
                             "another --out")
@@ -153,13 +211,18 @@ def _check_folder(cfg: TuneCfg, meta: dict, resume: bool) -> None:
         return
     if not path.exists():
         raise UserError(f"--out {out}: no tuning to resume (no config.json); drop --resume")
-    saved = json.loads(path.read_text())
+    try:
+        saved = json.loads(path.read_bytes())
+        if not all(isinstance(saved.get(k), dict) for k in ("base", "space", "tune")):
+            raise ValueError("not a tuning's settings")
+    except (OSError, UnicodeDecodeError, AttributeError, ValueError):
+        return  # damaged: written again from these options (each trial's run checks its own)
     for part in ("base", "space"):
         if saved[part] != meta[part]:
             diff = [k for k in meta[part] if saved[part].get(k) != meta[part][k]]
             raise UserError(f"{path}: --resume with other {part} settings "
                             f"({', '.join(diff) or part})")
-    if saved["tune"]["seed"] != cfg.seed:
+    if saved["tune"].get("seed") != cfg.seed:
         raise UserError(f"{path}: --resume with another --tune-seed ({saved['tune']['seed']})")
 
 
@@ -196,13 +259,16 @@ def _run_tune(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool, runne
     out = Path(cfg.out)
     meta = _meta(cfg, base, space)
     _check_folder(cfg, meta, resume)
+    if not resume and failed(out):
+        _start_over(out)
     out.mkdir(parents=True, exist_ok=True)
     atomic_write_json(out / "config.json", meta)
     rows_path, pending_path = out / "trials.csv", out / "pending.json"
-    rows = _read_rows(rows_path, space)
+    try:
+        rows, pending = _read_rows(rows_path, space), _read_pending(pending_path)
+    except UserError:  # damaged: every trial is replayed from its run folder (same suggestions,
+        rows, pending = [], {}  # the runs continue where they are), as recorded before
     done = {r["trial"] for r in rows}
-    pending = {int(k): v for k, v in json.loads(pending_path.read_text()).items()} \
-        if pending_path.exists() else {}
     pending = {k: v for k, v in pending.items() if k not in done}
     issued: list[int] = []
 
@@ -230,8 +296,10 @@ def _run_tune(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool, runne
     _write_outputs(out, rows, best, space, base, plot_convergence)
     for position, result in runner.run(items()):
         trial = issued[position]
-        rows.append(_row(trial, pending[trial], result))
-        _write_rows(rows_path, rows, space)
+        if trial not in done:  # recorded once, whatever was recorded before a kill
+            rows.append(_row(trial, pending[trial], result))
+            done.add(trial)
+            _write_rows(rows_path, rows, space)
         del pending[trial]
         atomic_write_json(pending_path, {str(k): v for k, v in sorted(pending.items())})
         best = _best(rows)

@@ -1,0 +1,95 @@
+"""Reading a run folder's own files, checked: ``config.json`` and ``metrics.csv``.
+
+A truncated, hand-edited or foreign file is one `UserError` naming the file, what is wrong and
+what to do about it (the caller's `fix`), never a traceback. Checkpoints are read by
+`vistac_learn.train.checkpoints.load_checkpoint`.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from vistac.errors import UserError
+
+if TYPE_CHECKING:
+    from vistac_learn.train.config import TrainCfg
+
+CONFIG = "config.json"
+METRICS = "metrics.csv"
+
+
+def read_run_config(run: Path, fix: str) -> dict:
+    """The parsed ``config.json`` of a run folder, with its ``train`` and ``dataset`` parts.
+
+    Args:
+        run: The run folder.
+        fix: What the user can do about a damaged file (the end of the error's line).
+
+    Raises:
+        UserError: missing, unreadable, not JSON, or without the parts a run writes.
+    """
+    path = Path(run) / CONFIG
+    try:
+        meta = json.loads(path.read_bytes())
+    except FileNotFoundError:
+        raise UserError(f"{path}: missing (not a vistac run folder)") from None
+    except OSError as exc:
+        raise UserError(f"{path}: unreadable ({exc.strerror or exc}); {fix}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: not valid JSON ({exc}); {fix}") from None
+    dataset = meta.get("dataset") if isinstance(meta, dict) else None
+    if not isinstance(meta, dict) or not isinstance(meta.get("train"), dict) \
+            or not isinstance(dataset, dict) \
+            or not all(isinstance(dataset.get(k), str) for k in ("path", "fingerprint")):
+        raise UserError(f"{path}: not a run's config (needs train settings and the dataset's "
+                        f"path and fingerprint); {fix}")
+    return meta
+
+
+def run_settings(run: Path, meta: dict, fix: str) -> TrainCfg:
+    """The `TrainCfg` of a run's parsed ``config.json`` (keys of other versions ignored).
+
+    Raises:
+        UserError: settings a run cannot have (a hand-edited file).
+    """
+    import dataclasses
+
+    from vistac_learn.train.config import TrainCfg
+
+    known = {f.name for f in dataclasses.fields(TrainCfg)}
+    try:
+        return TrainCfg(**{k: v for k, v in meta["train"].items() if k in known})
+    except (UserError, TypeError, ValueError) as exc:
+        raise UserError(f"{Path(run) / CONFIG}: its train settings are not valid ({exc}); "
+                        f"{fix}") from None
+
+
+def read_metrics(path: Path, fix: str) -> list[dict[str, float]]:
+    """The rows of a run's ``metrics.csv``, every value a number, epochs 1, 2, ... in order.
+
+    Raises:
+        UserError: missing, unreadable, a cut or edited row, epochs out of order.
+    """
+    try:
+        with path.open(newline="") as fh:
+            raw = list(csv.DictReader(fh))
+    except FileNotFoundError:
+        raise UserError(f"{path}: missing; {fix}") from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise UserError(f"{path}: unreadable ({exc}); {fix}") from None
+    rows = []
+    for i, r in enumerate(raw):
+        try:
+            row = {k: float(v) for k, v in r.items()}
+        except (TypeError, ValueError):  # a cut line (None) or text where a number belongs
+            raise UserError(f"{path}: line {i + 2} is damaged (not a row of numbers); "
+                            f"{fix}") from None
+        if "epoch" not in row or row["epoch"] != i + 1 or not math.isfinite(row["epoch"]):
+            raise UserError(f"{path}: line {i + 2}: epoch {row.get('epoch')} where {i + 1} "
+                            f"belongs; {fix}")
+        rows.append(row)
+    return rows
