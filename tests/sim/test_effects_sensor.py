@@ -183,3 +183,25 @@ def test_full_sensor_model_keeps_rest_low_and_readings_close_to_the_press():
     assert np.abs(s.measured[rest]).max() < 0.1  # offset + drift + noise, far below 0.5 N
     np.testing.assert_allclose(s.readings, forces, atol=0.2)  # bow + lag + bias: < 10 %
     assert not np.allclose(s.readings[0], s.readings[1], atol=1e-4)  # presses differ
+
+
+def test_session_memory_is_linear_in_the_presses():
+    """`--repeats` K: a session's memory grows like K (the series), not K^2 (issue 22: a (T, K)
+    table of envelopes took 9.4 GiB at K = 3000)."""
+    import tracemalloc
+
+    pipe = Pipeline(sensor=fts3_effects(Fts3Cfg()))
+
+    def peak(k: int) -> tuple[int, int]:
+        forces = np.zeros((k, 2, 3))
+        forces[..., 2] = -2.0
+        tracemalloc.start()
+        s = simulate_session(forces, pipe, RecordingCfg(), np.random.default_rng(1),
+                             np.random.default_rng(2))
+        size = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        return size, len(s.true)
+
+    (small, _), (large, samples) = peak(40), peak(400)
+    assert large < 16 * small  # 10x the presses: about 10x the memory (K^2 would be 100x)
+    assert large < 40 * samples * 6 * 8  # a few dozen (T, 2, 3) float arrays at most
