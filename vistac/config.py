@@ -34,7 +34,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, Literal
 
-from vistac.errors import UserError, brief
+from vistac.errors import UserError, brief, shorten
 
 _BOUNDS = {"ge": (">=", lambda v, b: v < b), "gt": (">", lambda v, b: v <= b),
            "le": ("<=", lambda v, b: v > b), "lt": ("<", lambda v, b: v >= b)}
@@ -232,6 +232,7 @@ def apply(cfg: Any, data: Any, where: str = "", prefix: str = "",
     for key, value in data.items():
         path = f"{prefix}.{key}" if prefix else str(key)
         if key not in fields:
+            path = path[:len(path) - len(str(key))] + shorten(str(key), 60)
             raise UserError(f"{label(path)}: unknown key (known: {', '.join(fields)})")
         current, part = getattr(cfg, key), optional_config(hints[key])
         if part is not None:

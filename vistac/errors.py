@@ -26,8 +26,9 @@ def brief(value: Any) -> str:
 
 
 def shorten(text: str, limit: int = MAX_MESSAGE) -> str:
-    """`text` cut to `limit` characters, saying how many were left out."""
+    """`text` cut to about `limit` characters in its middle (a message names what at its start
+    and says why at its end), saying how many were left out."""
     if len(text) <= limit:
         return text
-    cut = len(text) - limit
-    return f"{text[:limit]} ... ({cut} more characters)"
+    head, tail = limit * 2 // 3, limit // 3
+    return f"{text[:head]} ... ({len(text) - head - tail} characters cut) ... {text[-tail:]}"
