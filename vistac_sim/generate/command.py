@@ -133,6 +133,10 @@ def _generate(args: argparse.Namespace) -> int:
             raise
     finally:
         stop_fork_server()
+    if manifest.get("already_complete"):
+        print(f"nothing to do: {args.out} holds the complete dataset "
+              f"({manifest['counts']['configs']} configurations), checked")
+        return 0
     summary = {k: manifest[k] for k in ("counts", "redraws", "wall_time_s")}
     print(format_summary(manifest["per_object"]))
     print(f"wrote {args.out}: " + json.dumps(summary))

@@ -35,7 +35,9 @@ class GraspCfg(Config):
     closing_spread_deg: float = param(
         20.0, ge=0, lt=90,
         help="max degrees of the hand's closing axis (the push of both fingers) off the index "
-        "target's inward normal; the thumb closes along the same axis, where it meets the object")
+        "target's inward normal; the thumb closes along the same axis, where it meets the object "
+        "(where the friction cone plus cone_tolerance_deg is narrower, both pushes are drawn "
+        "within it: antipodal grasps)")
     max_push_angle_deg: float = param(
         50.0, ge=0, lt=90,
         help="max degrees between the closing axis and the thumb target's surface normal "

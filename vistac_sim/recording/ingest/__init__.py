@@ -33,8 +33,9 @@ The study's tactile preprocessing (thesis.md, section 3), made automatic:
 
 Repeats are numbered by segment, rejected ones included (the k-th grasp of a recording is
 ``repeat`` k), so that ingested presses join generated ones on (`config_id`, `repeat`). A
-configuration keeps the id its file names (``000123.csv`` <-> ``000123.png``: 123); when some
-name is not a number, ids are 0..N-1 in name order and the name stays in the `recording` column.
+configuration keeps the id its file names (``000123.csv`` <-> ``000123.png``: 123), whatever
+the other files are called; names that are not numbers are numbered after the largest number
+name (from 0 when there is none) in name order, and every name stays in the `recording` column.
 Configurations without a kept grasp are left out (a dataset's configuration needs presses) and
 listed in the manifest. Every rejected grasp is listed in ``rejected.csv`` (and counted by reason
 in the manifest).
