@@ -77,7 +77,8 @@ def _write_outputs(
     info: dict,
     make_plots: bool,
 ) -> dict:
-    """Score, print and save (JSON, per-prediction parquet, PNGs); return the JSON dict."""
+    """Score and save (JSON, per-prediction parquet, PNGs); return the JSON dict (its
+    ``table`` is what `vistac evaluate` prints)."""
     out.mkdir(parents=True, exist_ok=True)
     res = score(pred, tables, rows, item_row, fingers, full=True)
     cids = tables.configs["config_id"].to_numpy()
@@ -104,7 +105,6 @@ def _write_outputs(
             plots.plot_error_hist(ps["error_pct"], out / f"error_hist_{f}.png", f"{label} {f}:")
             plots.plot_rotation_spread(ps["angle_deg"], pos, cones,
                                        out / f"rotation_spread_{f}.png", f"{label} {f}:")
-    print(table)
     return result
 
 

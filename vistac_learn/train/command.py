@@ -65,11 +65,10 @@ def check_paths(cfg: TrainCfg) -> None:
 
 
 def _handler(args: argparse.Namespace) -> int:
-    from vistac_learn.train.job import JobCfg, run_job
+    from vistac.api import train
 
     cfg = options_cfg(args)
-    check_paths(cfg)
-    res = run_job(JobCfg(cfg, resume="yes" if args.resume else "no", progress=not args.quiet))
-    print(f"run written to {res.run} (best epoch {res.best_epoch}, validation median angle "
-          f"{res.objective:.2f} deg)")
+    run = train(cfg, cfg.data, cfg.out, resume=args.resume, progress=not args.quiet)
+    print(f"run written to {run.path} (best epoch {run.best_epoch}, validation median angle "
+          f"{run.objective:.2f} deg)")
     return 0

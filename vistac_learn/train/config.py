@@ -50,8 +50,8 @@ class TrainCfg(Config):
     """Everything a training run depends on (written to ``config.json``); defaults: the
     ``default`` protocol (see `PROTOCOLS`)."""
 
-    data: str = param(help="dataset directory")
-    out: str = param(help="run folder to create (or continue)")
+    data: str = param("", help="dataset directory (set by `vistac.train`'s data)")
+    out: str = param("", help="run folder to create or continue (set by `vistac.train`'s out)")
     model: str = param("tipnet", help="registered model name (`vistac models`)")
     variant: str = param(TIP_VIEW, choices=VIEWS, help="what the model sees: tip (fingertip "
                          "crops) or one of the study's image variants")
@@ -120,6 +120,13 @@ class TrainCfg(Config):
             if self.finger not in (region,):
                 raise UserError(f"--finger {self.finger}: variant {self.variant} shows only "
                                 f"the {region} finger; use --finger {region}")
+
+    @classmethod
+    def from_protocol(cls, protocol: str, **changes) -> TrainCfg:
+        """The defaults of a protocol (``default`` or ``study``, see `PROTOCOLS`), with
+        `changes` (any field) on top."""
+        return protocol_cfg(protocol, changes.pop("data", ""), changes.pop("out", ""),
+                            **changes)
 
     def rotation_cfg(self) -> RotationCfg:
         """Rotations of training and validation samples."""
