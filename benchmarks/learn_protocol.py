@@ -5,7 +5,7 @@ split), 6 presses each with 5 % force noise, every image at the study's 20 rotat
 degrees; index finger, edge-index variant, CPU. For each model: train with the study's defaults
 (Adam, MSE, lr 1e-4, weight decay 1e-5, batch 5) for ``--epochs`` epochs, pick the best epoch on
 the validation split, score the test split (34 x 20 = 680 predictions); then the same for the
-geometric baseline. Writes ``table.md`` (thesis.md section 9 columns, angular columns, training
+geometric baseline. Writes ``table.md`` (docs/study.md section 9 columns, angular columns, training
 seconds per epoch, inference images/s) and ``results.json`` into ``--out``.
 
 Re-running with the same ``--out`` reuses the dataset and finished runs, and resumes unfinished

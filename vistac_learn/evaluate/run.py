@@ -1,7 +1,7 @@
 """Scoring a trained run (or the geometric baseline) on a split (`vistac evaluate`).
 
-For each finger: every metric of thesis.md section 6 plus angular metrics
-(`vistac_learn.metrics.cone_metrics`), printed as a table in the study's layout (thesis.md
+For each finger: every metric of docs/study.md section 6 plus angular metrics
+(`vistac_learn.metrics.cone_metrics`), printed as a table in the study's layout (docs/study.md
 section 9) and saved, with the per-prediction values and the figures, into an output folder:
 
 - ``metrics.json``: settings, counts, inference speed, the scalar metrics per finger, the table.

@@ -7,7 +7,7 @@ Two protocols, each a complete set of defaults (every option overrides either):
   network; AdamW with a one-cycle learning-rate schedule, batches of 32, 30 epochs; mirror and
   crop-jitter augmentation drawn per batch; the best epoch by the validation median angle to
   the cone mean.
-- ``study``: the reference study's protocol (thesis.md section 8): SchoeConv100-V3(FC160) on
+- ``study``: the reference study's protocol (docs/study.md section 8): SchoeConv100-V3(FC160) on
   ``edge-index`` images at 20 fixed rotations of 18 degrees, index finger, MSE, Adam with a
   constant lr 1e-4, weight decay 1e-5, batches of 5, 20 epochs; selection by the validation
   median overall error (the study selected on its test set; we never do).
