@@ -47,9 +47,12 @@ class GraspCfg(Config):
                              help="per configuration, before the run fails loudly")
 
 
-@dataclass
+@dataclass(frozen=True)
 class GenerateCfg(Config):
-    """Everything `vistac generate` needs. Sub-trees default to their own defaults."""
+    """Everything `vistac generate` needs. Sub-trees default to their own defaults.
+
+    Frozen: a preset or scene file is resolved where the config is made (`from_preset`,
+    `from_file`); change a copy with `dataclasses.replace` or `vistac.config.apply`."""
 
     n: int = param(200, ge=1, le=10_000_000, help="number of grasp configurations")
     seed: int = param(0, ge=0, lt=2**32, help="seed of everything the run draws")
