@@ -1,7 +1,7 @@
 """Reading a dataset directory: the manifest, both tables and the cones, checked.
 
-`open_dataset` is the one reader of the format (contracts.md) for every consumer: the learner,
-`evaluate`, benchmarks and tests. It refuses an unfinished dataset, names the file, row and
+`open_dataset` is the one reader of the format (docs/dataset-format.md) for every consumer: the
+learner, `evaluate`, benchmarks and tests. It refuses an unfinished dataset, names the file, row and
 reason of any malformed content, and sorts configurations by `config_id`.
 """
 
@@ -232,7 +232,7 @@ def open_dataset(root: str | Path, require_complete: bool = True) -> DatasetTabl
     """Read and check a dataset directory.
 
     Args:
-        root: The dataset directory (contracts.md layout).
+        root: The dataset directory (docs/dataset-format.md layout).
         require_complete: Refuse a dataset whose manifest lacks ``"complete": true``.
 
     Returns:

@@ -28,6 +28,7 @@ import io
 import json
 import math
 import platform
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import asdict
@@ -268,7 +269,7 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
                                                          train_ds, val_ds, device, init_note)
                           | {"fingertips": {c.split: c.as_dict() for c in coverage}})
         if init_note and progress:
-            tqdm.write(f"init: {init_note['summary']}")
+            tqdm.write(f"init: {init_note['summary']}", file=sys.stderr)
 
     def save_last(epoch: int, batch: int) -> None:
         atomic_save({
@@ -334,7 +335,8 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
                 tqdm.write(
                     f"epoch {epoch + 1}/{cfg.epochs}: train loss {row['train_loss']:.4g}, "
                     f"val loss {val_loss:.4g}, {cfg.select} {value:.4g}"
-                    + (" (best)" if improved else "") + f", {row['epoch_s']:.1f} s")
+                    + (" (best)" if improved else "") + f", {row['epoch_s']:.1f} s",
+                    file=sys.stderr)
     except TrainingDiverged as exc:  # mark the run, so that a rerun into --out starts over
         meta = json.loads((out / "config.json").read_text())
         atomic_write_json(out / "config.json", meta | {"diverged": {"epoch": exc.epoch,
