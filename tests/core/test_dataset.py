@@ -11,7 +11,13 @@ import pytest
 from learn_fixtures import make_dataset
 
 from vistac.dataset import FINGERS, open_dataset, press_row, press_rows, unit_labels
-from vistac.dataset.schema import FORMAT_VERSION, LABEL_COLUMNS, box_columns, force_columns, label_columns
+from vistac.dataset.schema import (
+    FORMAT_VERSION,
+    LABEL_COLUMNS,
+    box_columns,
+    force_columns,
+    label_columns,
+)
 from vistac.errors import UserError
 
 
