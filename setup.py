@@ -1,5 +1,5 @@
 """Package layout that pyproject.toml cannot state: `sim_assets/` stays at the top of the
-repository (contracts.md) and is installed as package data, `vistac_sim/sim_assets/`
+repository (docs/dataset-format.md) and is installed as package data, `vistac_sim/sim_assets/`
 (`vistac_sim.assets` finds it in either place). Everything else is in pyproject.toml."""
 
 from setuptools import find_namespace_packages, find_packages, setup

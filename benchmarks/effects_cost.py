@@ -27,7 +27,6 @@ from pathlib import Path
 from vistac_sim.effects.finger_pull import FingerPullCfg
 from vistac_sim.effects.fts3 import Fts3Cfg
 from vistac_sim.effects.placement_error import PlacementErrorCfg
-from vistac_sim.effects.presets import resolve
 from vistac_sim.effects.registry import Pipeline, build_pipeline
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.configuration import make_configuration
@@ -56,8 +55,7 @@ def bypassed_pipeline():
 def variants(n: int, seed: int) -> dict[str, tuple[GenerateCfg, bool]]:
     """name -> (config, bypass the pipeline?)."""
     def cfg(preset: str = "clean", noise: float = 0.0, recordings: bool = False, **effects):
-        c = GenerateCfg(n=n, seed=seed)
-        c.effects, c.recording = resolve(preset, noise=noise)
+        c = GenerateCfg.from_preset(preset, noise=noise, n=n, seed=seed)
         for k, v in effects.items():
             setattr(c.effects, k, v)
         c.recording.write = recordings

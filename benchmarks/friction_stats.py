@@ -53,8 +53,8 @@ def contact_angles(configs: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     """Per contact (both fingers): push-to-normal and force-to-normal angles, degrees.
 
     The push (world xy, the hand's closing axis) is turned into the finger's sensor frame (z =
-    the finger axis, y = up x z, mirrored for the thumb; contracts.md); the normal columns hold
-    the outward normal there, so the push-to-normal angle is the angle between the push and
+    the finger axis, y = up x z, mirrored for the thumb; docs/dataset-format.md); the normal columns
+    hold the outward normal there, so the push-to-normal angle is the angle between the push and
     minus the normal.
     """
     push, force = [], []

@@ -87,13 +87,11 @@ def profile_generate(n: int, seed: int, out: Path) -> dict[str, float]:
     # (`processes.PRELOAD`) before its workers start; the bare loop's likewise.
     import pandas  # noqa: F401
 
-    from vistac_sim.effects.presets import resolve
     from vistac_sim.generate.config import GenerateCfg
     from vistac_sim.generate.run import generate
     from vistac_sim.generate.worker import make_chunk  # noqa: F401
 
-    cfg = GenerateCfg(n=n, seed=seed)
-    cfg.effects, cfg.recording = resolve(None, None, 0.05)  # what the benchmark's CLI run uses
+    cfg = GenerateCfg.from_preset(noise=0.05, n=n, seed=seed)  # what the benchmark's CLI run uses
     shutil.rmtree(out, ignore_errors=True)
     stats, total = _profiled(generate, cfg, out, 1, False, False)
     shutil.rmtree(out, ignore_errors=True)

@@ -13,7 +13,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from vistac_sim.effects.presets import resolve
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.run import generate
 
@@ -39,8 +38,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for preset in args.presets:
             for noise in NOISES:
-                cfg = GenerateCfg(n=args.n, seed=args.seed)
-                cfg.effects, cfg.recording = resolve(preset, noise=noise)
+                cfg = GenerateCfg.from_preset(preset, noise=noise, n=args.n, seed=args.seed)
                 out = Path(tmp) / f"{preset}_{noise}"
                 manifest = generate(cfg, out, workers=args.workers, progress=False)
                 presses = pd.read_parquet(out / "presses.parquet")

@@ -38,6 +38,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from learnbench import (  # noqa: E402
     baseline_entry,
     ensure_dataset,
+    headline_data,
     machine,
     mean_entry,
     run_entry,
@@ -107,8 +108,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="study nets trained on the tip view with the default recipe")
     p.add_argument("--quiet", action="store_true")
     args = p.parse_args(argv)
-    data = args.data or ensure_dataset(args.out / "data", "--n", str(args.n), "--noise", "0.05",
-                                       "--split-by", "object", "--seed", str(args.seed))
+    data = args.data or ensure_dataset(args.out / "data", headline_data(args.n, args.seed))
     progress = not args.quiet
     entries = [_default_entry(data, args.out, progress), baseline_entry(data, args.out),
                mean_entry(data)]

@@ -5,7 +5,7 @@ split), 6 presses each with 5 % force noise, every image at the study's 20 rotat
 degrees; index finger, edge-index variant, CPU. For each model: train with the study's defaults
 (Adam, MSE, lr 1e-4, weight decay 1e-5, batch 5) for ``--epochs`` epochs, pick the best epoch on
 the validation split, score the test split (34 x 20 = 680 predictions); then the same for the
-geometric baseline. Writes ``table.md`` (thesis.md section 9 columns, angular columns, training
+geometric baseline. Writes ``table.md`` (docs/study.md section 9 columns, angular columns, training
 seconds per epoch, inference images/s) and ``results.json`` into ``--out``.
 
 Re-running with the same ``--out`` reuses the dataset and finished runs, and resumes unfinished
@@ -30,14 +30,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from vistac.cli import main as vistac_main
-from vistac.dataset import open_dataset
+import vistac
+from vistac.dataset import SplitCfg, open_dataset
 from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.metrics.scoring import ANGLE_COLUMNS, STUDY_COLUMNS
 from vistac_learn.models import model_info
 from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.loop import train
+from vistac_sim.generate.config import GenerateCfg
 
 DEFAULT_MODELS = ("schoeconv100-v3-fc160", "alexnet-1x1", "smallconv", "resnet-tiny")
 
@@ -51,15 +52,12 @@ def _dataset(args: argparse.Namespace) -> Path:
     man = path / "manifest.json"
     if man.exists() and json.loads(man.read_text()).get("complete"):
         return path
-    argv = ["generate", "--out", str(path), "--n", str(n), "--repeats", str(args.repeats),
-            "--noise", str(args.noise), "--seed", str(args.seed), "--workers",
-            str(args.gen_workers), "--split", str(args.n_train / n), str(args.n_val / n),
-            str(args.n_test / n), "--no-progress"]
-    if man.exists():
-        argv.append("--resume")
+    cfg = GenerateCfg.from_preset(
+        "clean", noise=args.noise, n=n, repeats=args.repeats, seed=args.seed,
+        split=SplitCfg(fractions=(args.n_train / n, args.n_val / n, args.n_test / n)))
     t0 = time.perf_counter()
-    if vistac_main(argv) != 0:
-        raise SystemExit("dataset generation failed")
+    vistac.generate(cfg, path, workers=args.gen_workers, resume=man.exists() or
+                    (path / ".partial").exists())
     print(f"generated {path} in {time.perf_counter() - t0:.0f} s", flush=True)
     return path
 

@@ -18,32 +18,36 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from vistac.cli import main as vistac_main
-from vistac.dataset import FINGERS, open_dataset
+import vistac
+from vistac.dataset import FINGERS, SplitCfg, open_dataset
 from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.metrics import cone_metrics
 from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.loop import train
+from vistac_sim.generate.config import GenerateCfg
 
 COLUMNS = (("° to mean", "angle_to_mean_median_deg"), ("% in cone", "in_cone_pct"),
            ("% correct y", "correct_y_pct"), ("median err %", "error_median_pct"),
            ("median inacc. mean %", "inacc_mean_median_pct"))
 
 
-def ensure_dataset(path: Path, *generate_args: str) -> Path:
-    """`vistac generate --out path ...` unless a complete dataset is there (resumed if partial)."""
+def ensure_dataset(path: Path, cfg: GenerateCfg) -> Path:
+    """`vistac.generate(cfg, path)` unless a complete dataset is there (resumed if partial)."""
     man = path / "manifest.json"
     if man.exists() and json.loads(man.read_text()).get("complete"):
         return path
-    argv = ["generate", "--out", str(path), "--no-progress", *generate_args]
-    if (path / ".partial").exists():
-        argv.append("--resume")
     t0 = time.perf_counter()
-    if vistac_main(argv) != 0:
-        raise SystemExit(f"generating {path} failed")
+    vistac.generate(cfg, path, resume=(path / ".partial").exists())
     print(f"generated {path} in {time.perf_counter() - t0:.0f} s", flush=True)
     return path
+
+
+def headline_data(n: int, seed: int = 0) -> GenerateCfg:
+    """The learning benchmarks' dataset: `vistac generate --n N --noise 0.05 --split-by object
+    --seed S`."""
+    return GenerateCfg.from_preset("clean", noise=0.05, n=n, seed=seed,
+                                   split=SplitCfg(by="object"))
 
 
 def slug(label: str) -> str:

@@ -39,6 +39,7 @@ from learnbench import (  # noqa: E402
     baseline_entry,
     ensure_dataset,
     fmt,
+    headline_data,
     machine,
     mean_entry,
     run_entry,
@@ -125,8 +126,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="largest training set trained under the study's protocol")
     p.add_argument("--quiet", action="store_true")
     args = p.parse_args(argv)
-    data = args.data or ensure_dataset(args.out / "data", "--n", str(args.n), "--noise", "0.05",
-                                       "--split-by", "object")
+    data = args.data or ensure_dataset(args.out / "data", headline_data(args.n))
     n_train = len(open_dataset(data).rows("train"))
     sizes = [n_train if size <= 0 or size >= n_train else size for size in args.sizes]
     plan = [(n, name, protocol, kw) for name, protocol, kw in (

@@ -29,7 +29,15 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
-from learnbench import ensure_dataset, fmt, machine, run_entry, save, slug  # noqa: E402
+from learnbench import (  # noqa: E402
+    ensure_dataset,
+    fmt,
+    headline_data,
+    machine,
+    run_entry,
+    save,
+    slug,
+)
 
 from vistac.dataset import open_dataset  # noqa: E402
 from vistac_learn.models import count_macs  # noqa: E402
@@ -117,8 +125,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="train only models whose estimated training time is below this")
     p.add_argument("--quiet", action="store_true")
     args = p.parse_args(argv)
-    data = args.data or ensure_dataset(args.out / "data", "--n", str(args.n), "--noise", "0.05",
-                                       "--split-by", "object")
+    data = args.data or ensure_dataset(args.out / "data", headline_data(args.n))
     base = protocol_cfg("default", str(data), "")
     epochs = args.epochs or base.epochs
     n_train = len(open_dataset(data).rows("train"))

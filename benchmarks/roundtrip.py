@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from vistac_sim.effects.presets import resolve
 from vistac_sim.generate.run import generate
 from vistac_sim.recording.ingest.config import IngestCfg, IngestSources
 from vistac_sim.recording.ingest.run import ingest
@@ -61,9 +60,7 @@ def compare(gen: Path, ing: Path) -> dict:
 def run(preset: str, n: int, seed: int, workers: int, root: Path, cfg: IngestCfg) -> dict:
     from vistac_sim.generate.config import GenerateCfg
 
-    gcfg = GenerateCfg(n=n, seed=seed)
-    gcfg.effects, gcfg.recording = resolve(preset)
-    gcfg.recording.write = True
+    gcfg = GenerateCfg.from_preset(preset, recordings=True, n=n, seed=seed)
     gen, ing = root / f"gen_{preset}", root / f"ing_{preset}"
     t0 = time.perf_counter()
     generate(gcfg, gen, workers=workers, progress=False)

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import dataclasses
 import inspect
 import time
 from pathlib import Path
@@ -37,7 +38,6 @@ import numpy as np
 
 from vistac.dataset import unit_labels
 from vistac_sim.effects import build_pipeline
-from vistac_sim.effects.presets import resolve
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.configuration import ConfigStreams
 from vistac_sim.generate.scenes import ObjectScene, draw_grasp, solve
@@ -206,8 +206,8 @@ def image_panel(configs: Configs, cfg: GenerateCfg) -> list[dict]:
 
 
 def repeats_panel(configs: Configs, cfg: GenerateCfg, ref_repeats: int) -> list[dict]:
-    c = copy.deepcopy(cfg)
-    c.effects, c.recording = resolve("lab", None, None)
+    lab = GenerateCfg.from_preset("lab")
+    c = dataclasses.replace(copy.deepcopy(cfg), effects=lab.effects, recording=lab.recording)
     pipeline = build_pipeline(c.effects)
     scenes = [ObjectScene(o, c, render=False) for o in configs.objects]
     kmax = ref_repeats + max(REPEATS)  # the reference's presses are not reused

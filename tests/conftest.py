@@ -25,11 +25,10 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.fixture(scope="session")
 def small_dataset(tmp_path_factory):
-    """A real 24-configuration dataset made by `vistac generate` (in-process, one worker)."""
-    from vistac.cli import main
+    """A real 24-configuration dataset made by `vistac.generate` (in-process, one worker)."""
+    import vistac
+    from vistac_sim.objects.config import ObjectsCfg
 
-    out = tmp_path_factory.mktemp("data") / "d"
-    rc = main(["generate", "--n", "24", "--noise", "0.05", "--seed", "1", "--out", str(out),
-               "--workers", "1", "--no-progress", "--n-objects", "8", "--chunk-size", "5"])
-    assert rc == 0
-    return out
+    cfg = vistac.GenerateCfg.from_preset(noise=0.05, n=24, seed=1, chunk_size=5,
+                                         objects=ObjectsCfg(n_objects=8))
+    return vistac.generate(cfg, tmp_path_factory.mktemp("data") / "d", workers=1).path

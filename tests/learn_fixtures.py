@@ -2,9 +2,9 @@
 
 It stands in for the simulator: a polygonal object on a grey table, index finger (green) and
 thumb (red) drawn as capsules pressed against two different edges, the sensor-frame labels
-computed from the same geometry as the contract describes (frames of contracts.md and of the
-dataset layout). Forces are the surface normal plus a bounded tangential (friction-like) part,
-so the geometric baseline has a known answer (`normal_f_*`) and the labels a known spread.
+computed from the same geometry as the dataset format describes (its frames and layout,
+docs/dataset-format.md). Forces are the surface normal plus a bounded tangential (friction-like)
+part, so the geometric baseline has a known answer (`normal_f_*`) and the labels a known spread.
 """
 
 from __future__ import annotations

@@ -8,7 +8,8 @@ A new sub-command is one line in `COMMANDS` plus its module.
 
 Bad input never ends in a traceback: a malformed command line, a `UserError` (an option, file or
 row its check refused) and an `OSError` (a full disk, a folder that cannot be written) are
-printed as one line ``vistac COMMAND: error: ...`` and exit with status 2.
+printed as one line ``vistac COMMAND: error: ...`` (cut to a readable length: a message may
+quote a value of megabytes) and exit with status 2.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import argparse
 import importlib
 import sys
 
-from vistac.errors import UserError
+from vistac.errors import UserError, shorten
 
 # name -> (command module with `add_command(sub)`, one line of help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -71,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser(argv).parse_args(argv)
     except UsageError as exc:
-        print(" ".join(str(exc).split()), file=sys.stderr)
+        print(one_line(exc), file=sys.stderr)
         return 2
     try:
         return int(args.func(args) or 0)
@@ -84,8 +85,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def one_line(exc: BaseException) -> str:
-    """The message of an error on one line."""
-    return " ".join(str(exc).split()) or type(exc).__name__
+    """The message of an error on one line, cut to a readable length (`errors.MAX_MESSAGE`)."""
+    return shorten(" ".join(str(exc).split()) or type(exc).__name__)
 
 
 if __name__ == "__main__":

@@ -34,7 +34,7 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, Literal
 
-from vistac.errors import UserError
+from vistac.errors import UserError, brief, shorten
 
 _BOUNDS = {"ge": (">=", lambda v, b: v < b), "gt": (">", lambda v, b: v <= b),
            "le": ("<=", lambda v, b: v > b), "lt": ("<", lambda v, b: v >= b)}
@@ -124,10 +124,10 @@ def check_value(value: Any, hint: Any, meta: Mapping[str, Any] | None = None) ->
         return check_value(value, inner, meta)
     if origin is tuple:
         if not isinstance(value, list | tuple):
-            raise ValueError(f"expected {describe(hint)}, got {value!r}")
+            raise ValueError(f"expected {describe(hint)}, got {brief(value)}")
         items = args[:1] * len(value) if args[1:] == (Ellipsis,) else args
         if len(items) != len(value):
-            raise ValueError(f"expected {describe(hint)}, got {value!r}")
+            raise ValueError(f"expected {describe(hint)}, got {brief(value)}")
         noun = meta.get("distinct")
         if noun and not value:
             raise ValueError(f"give at least one {noun}")
@@ -136,18 +136,18 @@ def check_value(value: Any, hint: Any, meta: Mapping[str, Any] | None = None) ->
         return tuple(check_value(v, t, meta) for v, t in zip(value, items, strict=True))
     if origin is Literal:
         if value not in args:
-            raise ValueError(f"expected one of {', '.join(map(repr, args))}, got {value!r}")
+            raise ValueError(f"expected one of {', '.join(map(repr, args))}, got {brief(value)}")
         return value
     if dataclasses.is_dataclass(hint):
         if not isinstance(value, hint):
-            raise ValueError(f"expected a {hint.__name__}, got {value!r}")
+            raise ValueError(f"expected a {hint.__name__}, got {brief(value)}")
         return value
     if hint is Path:
         if not isinstance(value, str | os.PathLike):
-            raise ValueError(f"expected a path, got {value!r}")
+            raise ValueError(f"expected a path, got {brief(value)}")
         value = Path(value)
     elif hint is not Any and not _is_a(value, hint):
-        raise ValueError(f"expected {describe(hint)}, got {value!r}")
+        raise ValueError(f"expected {describe(hint)}, got {brief(value)}")
     _check_allowed(value, meta)
     return value
 
@@ -162,15 +162,15 @@ def _is_a(value: Any, hint: Any) -> bool:
 
 def _check_allowed(value: Any, meta: Mapping[str, Any]) -> None:
     if isinstance(value, float) and not math.isfinite(value):  # every float field, in one place
-        raise ValueError(f"must be a finite number, got {value!r}")
+        raise ValueError(f"must be a finite number, got {brief(value)}")
     why = f" ({meta['why']})" if meta.get("why") else ""
     choices = meta.get("choices")
     if choices is not None and value not in choices:
-        raise ValueError(f"must be one of {', '.join(map(str, choices))}, got {value!r}{why}")
+        raise ValueError(f"must be one of {', '.join(map(str, choices))}, got {brief(value)}{why}")
     for key, (sign, violates) in _BOUNDS.items():
         bound = meta.get(key)
         if bound is not None and violates(value, bound):
-            raise ValueError(f"must be {sign} {bound}, got {value!r}{why}")
+            raise ValueError(f"must be {sign} {bound}, got {brief(value)}{why}")
 
 
 def describe(hint: Any) -> str:
@@ -225,13 +225,14 @@ def apply(cfg: Any, data: Any, where: str = "", prefix: str = "",
         return labels.get(path) or (f"{where}: {path}" if where else path)
 
     if not isinstance(data, Mapping):
-        raise UserError(f"{label(prefix)}: expected a table of settings, got {data!r}")
+        raise UserError(f"{label(prefix)}: expected a table of settings, got {brief(data)}")
     fields = {f.name: f for f in dataclasses.fields(cfg)}
     hints = type_hints(type(cfg))
     changes = {}
     for key, value in data.items():
         path = f"{prefix}.{key}" if prefix else str(key)
         if key not in fields:
+            path = path[:len(path) - len(str(key))] + shorten(str(key), 60)
             raise UserError(f"{label(path)}: unknown key (known: {', '.join(fields)})")
         current, part = getattr(cfg, key), optional_config(hints[key])
         if part is not None:

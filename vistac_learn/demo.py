@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from vistac.config import Config, ConfigError, add_options, from_options, param
+from vistac.dataset import SplitCfg
 
 
 @dataclass
@@ -40,37 +41,34 @@ class DemoCfg(Config):
 
 
 def run_demo(cfg: DemoCfg) -> Path:
-    """Run the demo pipeline into `cfg.out` and return the path of its report."""
-    from vistac.cli import main as vistac
+    """Run the demo pipeline into `cfg.out` and return the path of its report.
+
+    Each step is a call of the Python API (`vistac.api`), as a script of one's own would make it.
+    """
+    from vistac import api
+    from vistac_learn.evaluate.command import EvaluateCfg
+    from vistac_learn.train.config import TrainCfg
+    from vistac_sim.generate.config import GenerateCfg
 
     out = cfg.out
     out.mkdir(parents=True, exist_ok=True)
     data, run = out / "data", out / "run"
     t0 = time.perf_counter()
     if not (data / "manifest.json").exists():
-        resume = ["--resume"] if (data / ".partial").exists() else []
-        generate = ["generate", "--out", str(data), "--n", str(cfg.n), "--noise", "0.05",
-                    "--split-by", "object", "--seed", str(cfg.seed), "--workers",
-                    str(cfg.workers), *resume]
-        _check(vistac(generate), "generate")
+        gen = GenerateCfg.from_preset("clean", noise=0.05, n=cfg.n, seed=cfg.seed,
+                                      split=SplitCfg(by="object"))
+        api.generate(gen, data, workers=cfg.workers, resume=(data / ".partial").exists(),
+                     progress=True)
     t_data = time.perf_counter() - t0
-    train_args = ["train", "--data", str(data), "--out", str(run), "--model", cfg.model,
-                  "--epochs", str(cfg.epochs), "--seed", str(cfg.seed)]
-    if (run / "checkpoints" / "last.pt").exists():
-        train_args.append("--resume")
     t1 = time.perf_counter()
-    _check(vistac(train_args), "train")
+    train = TrainCfg.from_protocol("default", model=cfg.model, epochs=cfg.epochs, seed=cfg.seed)
+    trained = api.train(train, data, run,
+                        resume=(run / "checkpoints" / "last.pt").exists(), progress=True)
     t_train = time.perf_counter() - t1
-    _check(vistac(["evaluate", "--run", str(run)]), "evaluate")
-    baseline = ["evaluate", "--baseline", "geometric", "--data", str(data), "--out",
-                str(out / "baseline"), "--finger", "both", "--rotations", "none"]
-    _check(vistac(baseline), "evaluate baseline")
+    api.evaluate(trained, progress=True)
+    api.evaluate(EvaluateCfg(baseline="geometric", data=str(data), out=str(out / "baseline"),
+                             finger="both", rotations="none"), progress=True)
     return write_report(out, data, run, t_data, t_train)
-
-
-def _check(rc: int, step: str) -> None:
-    if rc:
-        raise SystemExit(f"vistac demo: step '{step}' failed (exit {rc})")
 
 
 def write_report(out: Path, data: Path, run: Path, t_data: float, t_train: float) -> Path:
@@ -117,7 +115,6 @@ def write_report(out: Path, data: Path, run: Path, t_data: float, t_train: float
     ]
     report = out / "report.md"
     report.write_text("\n".join(lines))
-    print(f"report: {report}")
     return report
 
 
@@ -140,5 +137,5 @@ def _handler(args: argparse.Namespace) -> int:
     cfg = from_options(DemoCfg, args, OPTIONS)
     check_out_dir(cfg.out)
     check_workers(cfg.workers)
-    run_demo(cfg)
+    print(f"report: {run_demo(cfg)}")
     return 0

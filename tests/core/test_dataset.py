@@ -10,8 +10,14 @@ import pandas as pd
 import pytest
 from learn_fixtures import make_dataset
 
-from vistac.dataset import FINGERS, open_dataset, press_row, unit_labels
-from vistac.dataset.schema import LABEL_COLUMNS, box_columns, force_columns
+from vistac.dataset import FINGERS, open_dataset, press_row, press_rows, unit_labels
+from vistac.dataset.schema import (
+    FORMAT_VERSION,
+    LABEL_COLUMNS,
+    box_columns,
+    force_columns,
+    label_columns,
+)
 from vistac.errors import UserError
 
 
@@ -40,7 +46,23 @@ def test_press_row_names_every_column_once():
     assert list(row) == ["config_id", "repeat", *force_columns("index"),
                          *force_columns("thumb"), *LABEL_COLUMNS]
     assert row["force_thumb_y"] == 4.0 and row["r_z_index"] == pytest.approx(-2 ** -0.5)
-    assert FINGERS == ("index", "thumb") and box_columns("thumb")[0] == "bbox_thumb_x"
+
+
+def test_press_rows_put_each_finger_and_repeat_in_its_own_columns():
+    """Forces (R, 2, 3) and labels (R, 2, 2) in `FINGERS` order land in the columns named for
+    that finger, one row per repeat; the column names of different fingers never collide."""
+    rng = np.random.default_rng(0)
+    forces = rng.normal(size=(4, len(FINGERS), 3))
+    labels = unit_labels(forces)
+    table = pd.DataFrame(press_rows(11, forces, labels))
+    assert table["repeat"].tolist() == [0, 1, 2, 3] and set(table["config_id"]) == {11}
+    for i, f in enumerate(FINGERS):
+        np.testing.assert_array_equal(table[force_columns(f)].to_numpy(), forces[:, i])
+        np.testing.assert_array_equal(table[label_columns(f)].to_numpy(), labels[:, i])
+    names = [c for f in FINGERS for c in (*force_columns(f), *label_columns(f), *box_columns(f))]
+    assert len(set(names)) == len(names)
+    with pytest.raises(ValueError, match="not"):
+        press_rows(11, forces[:, :1], labels[:, :1])  # one finger only: refused
 
 
 def test_interrupted_run_is_named(tmp_path):
@@ -107,4 +129,8 @@ def test_manifest_must_be_json(tmp_path, ds_dir):
     with pytest.raises(UserError, match="not valid JSON"):
         open_dataset(d)
     (d / "manifest.json").write_text(json.dumps({"complete": True}))
+    with pytest.raises(UserError, match="format_version missing"):
+        open_dataset(d)
+    (d / "manifest.json").write_text(json.dumps({"complete": True,
+                                                 "format_version": FORMAT_VERSION}))
     assert len(open_dataset(d).configs) == 8

@@ -229,6 +229,8 @@ CASES = [
     # ------------------------------------------------ damaged datasets
     Case("data-format-version-99", _bad_data(T), "format_version",
          manifest(lambda m: m | {"format_version": 99})),
+    Case("data-format-version-missing", _bad_data(T), "format_version",
+         manifest(lambda m: {k: v for k, v in m.items() if k != "format_version"})),
     Case("data-format-version-0", _bad_data(T), "format_version",
          manifest(lambda m: m | {"format_version": 0})),
     Case("data-format-version-1.5", _bad_data(T), "format_version",

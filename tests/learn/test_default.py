@@ -44,7 +44,7 @@ def _train_loss(run, split: str = "train") -> float:
     cfg = type(cfg)(**meta["train"])
     t = open_dataset(cfg.data)
     model = build_model(cfg)
-    model.load_state_dict(torch.load(run / "checkpoints" / "last.pt", weights_only=False)["model"])
+    model.load_state_dict(torch.load(run / "checkpoints" / "last.pt", weights_only=True)["model"])
     model.eval()
     tips = fingertip_table(t, cache_dir=cfg.cache_dir)
     ds = build_samples(cfg, t, split, input_size(cfg, model), tips)
@@ -109,8 +109,8 @@ def test_init_loads_the_weights_it_names(generated, tmp_path):
     assert meta["init"]["run"] == str(src.resolve()) and not meta["init"]["reinitialised"]
     frozen = train(protocol_cfg("default", str(generated), str(tmp_path / "fz"), init=str(src),
                                 freeze="features", **kw), progress=False)
-    a = torch.load(src / "checkpoints" / "best.pt", weights_only=False)["model"]
-    b = torch.load(frozen / "checkpoints" / "last.pt", weights_only=False)["model"]
+    a = torch.load(src / "checkpoints" / "best.pt", weights_only=True)["model"]
+    b = torch.load(frozen / "checkpoints" / "last.pt", weights_only=True)["model"]
     assert all(torch.equal(a[k], b[k]) for k in a if ".features." in f".{k}")
     assert not all(torch.equal(a[k], b[k]) for k in a if "head" in k)
     with pytest.raises(UserError, match="not a finished run"):

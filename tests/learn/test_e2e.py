@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from vistac.cli import main
+import vistac
 from vistac.dataset import open_dataset
 from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.geometric import baseline_predictions
@@ -16,11 +16,8 @@ from vistac_learn.train.loop import train
 
 @pytest.fixture(scope="module")
 def generated(tmp_path_factory):
-    out = tmp_path_factory.mktemp("e2e") / "ds"
-    argv = ["generate", "--n", "30", "--repeats", "3", "--noise", "0.05", "--seed", "7",
-            "--workers", "1", "--no-progress", "--out", str(out)]
-    assert main(argv) == 0
-    return out
+    cfg = vistac.GenerateCfg.from_preset(noise=0.05, n=30, repeats=3, seed=7)
+    return vistac.generate(cfg, tmp_path_factory.mktemp("e2e") / "ds", workers=1).path
 
 
 def test_generated_dataset_trains_and_evaluates(generated, tmp_path):

@@ -47,9 +47,26 @@ def test_matches_reference_on_hand_made_cases():
 # Hand-computed examples, one per metric
 # --------------------------------------------------------------------------------------------
 
-def test_documented_constants():
-    assert (EPS_Z, EPS_M, EPS_W) == (1e-6, 1e-6, 1e-3)
-    assert (metrics.IN_CONE_RTOL, metrics.MSE_CLIP) == (1e-9, 1e100)
+def test_the_conventions_state_the_constants_the_code_uses():
+    """The module's documentation gives each constant's value; it must be the code's."""
+    import re
+
+    doc = metrics.__doc__
+    for name in ("EPS_Z", "EPS_M", "EPS_W", "MSE_CLIP"):
+        stated = re.search(rf"{name} = ([0-9.e+-]+)", doc)
+        assert stated and float(stated.group(1)) == getattr(metrics, name), name
+    assert f"|m| <= 1 / EPS_Z = {1 / EPS_Z:.0e}".replace("+0", "") in doc
+
+
+def test_in_cone_tolerance_and_mse_clip_behave_as_documented():
+    hi = CONE[-1][0] / CONE[-1][1]  # the cone's upper edge (slope 0.3)
+    assert one(pred_with_slope(hi * (1 + 1e-12)))["in_cone"]  # rounding beyond the edge
+    beyond = one(pred_with_slope(hi * (1 + 1e-6)))
+    assert not beyond["in_cone"] and beyond["error_pct"] > 0
+    assert metrics.IN_CONE_RTOL * max(1.0, hi) < hi * 1e-6  # the tolerance lies in between
+    huge = one((1e300, -1e300))  # clipped to +-MSE_CLIP before squaring: finite, ~ clip^2
+    assert math.isfinite(huge["mse"])
+    assert huge["mse"] == pytest.approx(metrics.MSE_CLIP**2, rel=1e-6)
 
 
 def test_slopes_of_labels_and_cone():
@@ -195,11 +212,17 @@ def test_summary_per_configuration_with_a_mask():
             assert masked[key] == pytest.approx(sub[key], rel=1e-12), key
 
 
-def test_torch_tensors_are_accepted():
+def test_torch_tensors_score_as_their_numpy_values():
     torch = pytest.importorskip("torch")
-    pred = torch.tensor([[0.1, -1.0]], requires_grad=True)
-    r = cone_metrics(pred, torch.tensor([0]), [torch.tensor(CONE)])
-    assert r["n"] == 1
+    preds, cone_of, label_sets = random_case(3, n_configs=5, n_preds=30)
+    expected = cone_metrics(preds, cone_of, label_sets)
+    pred = torch.tensor(preds, requires_grad=True)  # a model's output, still in the graph
+    got = cone_metrics(pred, torch.tensor(cone_of), [torch.tensor(s) for s in label_sets])
+    assert got["n"] == expected["n"] == 30
+    for key in SUMMARY_KEYS:
+        assert got[key] == pytest.approx(expected[key], rel=1e-12, abs=1e-12), key
+    for key, values in expected["per_sample"].items():
+        np.testing.assert_allclose(got["per_sample"][key], values, rtol=1e-12, err_msg=key)
 
 
 @pytest.mark.parametrize(

@@ -11,7 +11,7 @@ from torch import nn
 from vistac_learn import models
 from vistac_learn.models import command, count_macs, create_model, list_models, model_info, registry
 
-# thesis.md section 7, copied here independently of models.py: name -> (input, f, w).
+# docs/study.md section 7, copied here independently of models.py: name -> (input, f, w).
 THESIS_TABLE = {
     "AlexNet": (227, 9216, 4096),
     "AlexNet-1x1": (227, 256, 160),
@@ -28,7 +28,7 @@ THESIS_TABLE = {
     "SchoeConv227-V2": (227, 400, 160),
 }
 
-# Forward cost per image stated by thesis.md (multiply-accumulates).
+# Forward cost per image stated by docs/study.md (multiply-accumulates).
 THESIS_MACS = {
     "AlexNet": 1.0e9,
     "SchoeConv100-V3(FC160)": 0.66e9,

@@ -120,11 +120,21 @@ def test_rotating_the_top_view_leaves_labels_and_tip_crops_unchanged(ds):
             assert np.abs(a - b).mean() < 12.0, (row, f)  # interpolation only
 
 
-def test_identity_augmentation_changes_nothing(ds):
+def test_identity_augmentation_changes_nothing_and_each_part_changes_the_crop(ds):
+    """On a real image (the drawn finger, the object's edge): the default `Aug` is the identity,
+    while a shift, a turn and a scale each move the crop and a mirror flips it exactly."""
+    from vistac_learn.data.variants import read_rgb
+
     t, tips = ds
-    img = np.zeros((64, 64, 3), np.uint8)
-    tip = tips.get(int(t.rows("train")[0]), "index")
-    np.testing.assert_array_equal(tip_crop(img, tip, 16), tip_crop(img, tip, 16, aug=Aug()))
+    row = int(t.rows("train")[0])
+    img, tip = read_rgb(t.image_path(row)), tips.get(row, "index")
+    plain = tip_crop(img, tip, 32)
+    assert plain.std() > 10  # a crop with content, not a flat patch
+    np.testing.assert_array_equal(plain, tip_crop(img, tip, 32, aug=Aug()))
+    for aug in (Aug(shift=(0.5, 0.0)), Aug(shift=(0.0, 0.5)), Aug(turn=20.0), Aug(scale=1.3)):
+        moved = tip_crop(img, tip, 32, aug=aug).astype(float)
+        assert np.abs(moved - plain).mean() > 2.0, aug
+    np.testing.assert_array_equal(tip_crop(img, tip, 32, mirror=True), plain[:, :, ::-1])
 
 
 def test_side_features_say_where_the_other_finger_is(ds):

@@ -78,8 +78,8 @@ def test_killed_and_resumed_run_ends_identical(ds_dir, tmp_path, kill_at):
         train(cut, progress=False, on_batch=killer)
     train(cut, resume=True, progress=False)
     _same_metrics(ref, tmp_path / "cut", atol=1e-7)
-    wa = torch.load(ref / "checkpoints" / "last.pt", weights_only=False)["model"]
-    wb = torch.load(tmp_path / "cut" / "checkpoints" / "last.pt", weights_only=False)["model"]
+    wa = torch.load(ref / "checkpoints" / "last.pt", weights_only=True)["model"]
+    wb = torch.load(tmp_path / "cut" / "checkpoints" / "last.pt", weights_only=True)["model"]
     for k in wa:
         torch.testing.assert_close(wa[k], wb[k], rtol=0, atol=1e-7)
 
@@ -169,7 +169,7 @@ def test_sigkilled_process_resumes_identically(ds_dir, tmp_path):
     deadline = time.time() + 120
     while time.time() < deadline and proc.poll() is None:
         if last.exists():
-            ck = torch.load(last, weights_only=False)
+            ck = torch.load(last, weights_only=True)
             if ck["epoch"] >= 1 and ck["batch"] > 0:  # mid-epoch, after a finished epoch
                 break
         time.sleep(0.05)

@@ -30,10 +30,25 @@ def env_of(name: str) -> str | None:
     return os.environ.get(name)
 
 
-def timed_nap(x: float) -> tuple[float, float]:
-    start = time.time()
-    time.sleep(x)
-    return start, time.time()
+class Rendezvous:
+    """Marks itself running in `folder`, waits until `peers` tasks run at once (at most `wait`
+    seconds) and returns the most it saw running. The runner's cap is an upper bound that no
+    timing can break; the wait makes tasks that do run together see each other."""
+
+    def __init__(self, folder: Path, peers: int, wait: float):
+        self.folder, self.peers, self.wait = folder, peers, wait
+
+    def __call__(self, x: int) -> int:
+        me = self.folder / f"running_{x}"
+        me.touch()
+        try:
+            deadline, seen = time.monotonic() + self.wait, 0
+            while seen < self.peers and time.monotonic() < deadline:
+                seen = max(seen, len(list(self.folder.glob("running_*"))))
+                time.sleep(0.005)
+            return seen
+        finally:
+            me.unlink()
 
 
 class CrashOnce:
@@ -61,15 +76,6 @@ class Picky:
         return x
 
 
-def _max_overlap(spans: list[tuple[float, float]]) -> int:
-    events = sorted([(s, 1) for s, _ in spans] + [(e, -1) for _, e in spans])
-    level = peak = 0
-    for _, step in events:
-        level += step
-        peak = max(peak, level)
-    return peak
-
-
 def test_engine_cfg_defaults_and_checks(monkeypatch):
     monkeypatch.delenv("RAY_ADDRESS", raising=False)
     assert EngineCfg().engine == "local" and EngineCfg(engine="ray").address is None
@@ -90,12 +96,17 @@ def test_results_in_item_order_and_as_they_finish(ray):
     assert runner([]) == []
 
 
-def test_concurrency_follows_the_cpus_and_the_cap(ray):
-    spans = RayRunner(ray, timed_nap).map([0.4] * 4)
-    assert _max_overlap(spans) == 2
-    capped = RayRunner(ray, timed_nap, max_concurrent=1)
+def test_concurrency_follows_the_cpus_and_the_cap(ray, tmp_path):
+    for name in ("pair", "four", "capped"):
+        (tmp_path / name).mkdir()
+    # two tasks on the instance's 2 CPUs run together: each waits until it sees the other
+    assert RayRunner(ray, Rendezvous(tmp_path / "pair", 2, wait=120.0)).map([0, 1]) == [2, 2]
+    # never more than 2 at once, even when a task would wait for a third
+    most = RayRunner(ray, Rendezvous(tmp_path / "four", 3, wait=0.3)).map(range(4))
+    assert 1 <= max(most) <= 2
+    capped = RayRunner(ray, Rendezvous(tmp_path / "capped", 2, wait=0.3), max_concurrent=1)
     assert capped.concurrency == 1
-    assert _max_overlap(capped.map([0.1] * 3)) == 1
+    assert capped.map(range(3)) == [1, 1, 1]
     assert RayRunner(ray, square, max_concurrent=8).concurrency == 2
     assert RayRunner(ray, square, num_cpus=2).concurrency == 1
     with pytest.raises(UserError, match="asks for 4 CPU and 0 GPU, the cluster has 2 CPU"):

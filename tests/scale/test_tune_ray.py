@@ -99,25 +99,36 @@ def test_trials_asking_for_more_than_the_cluster_has_are_refused(ray_local, setu
         in capsys.readouterr().err
 
 
+# A driver that kills itself (SIGKILL) once its first finished trial is on disk (trials.csv,
+# pending.json and the outputs written): the same point of the tuning whatever the load.
+KILLED_AFTER_FIRST_TRIAL = """
+import os, signal, sys
+from vistac.cli import main
+from vistac_learn.tune import driver
+write = driver._write_outputs
+def write_then_die(out, rows, *args):
+    write(out, rows, *args)
+    if rows:
+        os.kill(os.getpid(), signal.SIGKILL)
+driver._write_outputs = write_then_die
+sys.exit(main(sys.argv[1:]))
+"""
+
+
 def test_killed_ray_driver_then_resume(ray_local, setup, tmp_path):
-    """A second driver joins the running instance by address and is killed with SIGKILL after
-    its first finished trial; the resumed tuning redoes the trials in flight and ends with the
-    files of the local engine."""
+    """A second driver joins the running instance by address and is killed with SIGKILL right
+    after its first finished trial; the resumed tuning redoes the trials in flight and ends with
+    the files of the local engine."""
     args, ref = setup
     address = ray_local.get_runtime_context().gcs_address
     out = tmp_path / "killed"
-    cmd = [sys.executable, "-m", "vistac.cli", "tune", "--out", str(out), "--trials",
-           str(TRIALS), "--quiet", *args, "--engine", "ray", "--ray-address", address]
-    proc = subprocess.Popen(cmd)
-    deadline = time.time() + 180
-    while time.time() < deadline and not ((out / "trials.csv").exists() and _rows(out)):
-        assert proc.poll() is None, "the driver ended before it was killed"
-        time.sleep(0.05)
-    os.kill(proc.pid, signal.SIGKILL)
-    proc.wait()
+    cmd = [sys.executable, "-c", KILLED_AFTER_FIRST_TRIAL, "tune", "--out", str(out),
+           "--trials", str(TRIALS), "--quiet", *args, "--engine", "ray", "--ray-address",
+           address]
+    proc = subprocess.run(cmd, timeout=600)
+    assert proc.returncode == -signal.SIGKILL
     _wait_until_no_task_runs()
-    finished = len(_rows(out))
-    assert 1 <= finished < TRIALS and json.loads((out / "pending.json").read_text())
+    assert len(_rows(out)) == 1 < TRIALS and json.loads((out / "pending.json").read_text())
     assert _tune(out, args, "--engine", "ray", "--resume") == 0
     _assert_same_tuning(ref, out)
 

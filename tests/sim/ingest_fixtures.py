@@ -7,7 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-N_COLS = 20  # contracts.md: thumb F at 14-16, index F at 17-19
+N_COLS = 20  # docs/dataset-format.md: thumb F at 14-16, index F at 17-19
 HEADER = ",".join(f"c{i}" for i in range(N_COLS))
 
 

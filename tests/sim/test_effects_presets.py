@@ -52,8 +52,7 @@ def test_presets_parse_and_build():
 
 
 def test_effects_round_trip_through_the_manifest_dict():
-    cfg = GenerateCfg()
-    cfg.effects, cfg.recording = resolve("harsh", noise=0.02)
+    cfg = GenerateCfg.from_preset("harsh", noise=0.02)
     again = apply(GenerateCfg(), json.loads(json.dumps(cfg.to_dict())))
     assert again == cfg
 

@@ -162,13 +162,14 @@ def test_session_presses_peak_at_the_solved_force_and_rest_is_zero():
     np.testing.assert_array_equal(s.readings, forces)  # bitwise: no effect, no change
     env = s.envelope
     assert env.max() == 1.0 and np.all(env >= 0)
-    assert np.all((s.weights > 0).sum(axis=1) <= 1)  # presses never overlap
+    assert np.all(env[s.press < 0] == 0) and np.all(s.press[env > 0] >= 0)  # rest is rest
+    assert np.all(np.diff(s.press[s.press >= 0]) >= 0)  # presses in order, never overlapping
     # each press: strictly rising up to the peak, falling right after it
     for p in s.peaks:
         assert env[p - 1] < env[p] and env[p + 1] < env[p]
     gaps = np.diff(np.flatnonzero(np.diff((env > 0.2).astype(int)) != 0))[1::2]
     assert gaps.min() >= 0.8 * cfg.rest_s * cfg.rate_hz  # clear rest between presses
-    weights, peaks = press_envelopes(6, cfg, np.random.default_rng(6))
+    _, _, peaks = press_envelopes(6, cfg, np.random.default_rng(6))
     np.testing.assert_array_equal(peaks, s.peaks)  # the timing is its own stream
 
 
@@ -182,3 +183,25 @@ def test_full_sensor_model_keeps_rest_low_and_readings_close_to_the_press():
     assert np.abs(s.measured[rest]).max() < 0.1  # offset + drift + noise, far below 0.5 N
     np.testing.assert_allclose(s.readings, forces, atol=0.2)  # bow + lag + bias: < 10 %
     assert not np.allclose(s.readings[0], s.readings[1], atol=1e-4)  # presses differ
+
+
+def test_session_memory_is_linear_in_the_presses():
+    """`--repeats` K: a session's memory grows like K (the series), not K^2 (issue 22: a (T, K)
+    table of envelopes took 9.4 GiB at K = 3000)."""
+    import tracemalloc
+
+    pipe = Pipeline(sensor=fts3_effects(Fts3Cfg()))
+
+    def peak(k: int) -> tuple[int, int]:
+        forces = np.zeros((k, 2, 3))
+        forces[..., 2] = -2.0
+        tracemalloc.start()
+        s = simulate_session(forces, pipe, RecordingCfg(), np.random.default_rng(1),
+                             np.random.default_rng(2))
+        size = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+        return size, len(s.true)
+
+    (small, _), (large, samples) = peak(40), peak(400)
+    assert large < 16 * small  # 10x the presses: about 10x the memory (K^2 would be 100x)
+    assert large < 40 * samples * 6 * 8  # a few dozen (T, 2, 3) float arrays at most

@@ -125,3 +125,33 @@ def test_the_cone_check_rejects_exactly_the_forces_beyond_the_cone():
         assert rejected == beyond, (force, normal, ang)
     assert decided > 1900
     check_physics(np.array([[0.0, 0.0, -1.0], [0.0, 0.0, -1.0]]), np.zeros((2, 3)), 0.0, 0.0)
+
+
+@pytest.mark.parametrize("friction", (0.0, 0.2))
+def test_grasps_are_antipodal_within_a_narrow_cone(friction):
+    """Where the friction cone (plus the check's tolerance) is narrower than the closing spread,
+    both pushes lie within it of their surface normals, and every family still gives its
+    presses (issue 22: at friction 0 draws that slide used to exhaust the redraws)."""
+    from vistac_sim.generate.grasps import cone_limit_deg
+
+    cfg = GenerateCfg()
+    cfg.physics.friction = friction
+    limit = cone_limit_deg(friction, cfg.physics.cone_tolerance_deg)
+    assert limit < cfg.grasp.closing_spread_deg
+    drawn = _drawn(cfg)
+    assert len(drawn) == 3 * len(cfg.objects.families)
+    for grasp, _, _ in drawn:
+        assert angle_deg(grasp.push, -grasp.normal).max() <= limit + 1e-9
+
+
+def test_the_default_friction_draws_as_before():
+    """At the default friction the cone is wider than the closing spread: no antipodal search,
+    the draws (and the datasets' bytes) are those of the sampler without it."""
+    from vistac_sim.generate.grasps import OutlineSampler
+
+    cfg = GenerateCfg()
+    spec = procedural_library(cfg.objects, 0)[0]
+    obj = build_object(spec, cfg.hand.height)
+    assert OutlineSampler.of(obj, cfg).antipodal_deg is None
+    cfg.physics.friction = 0.0
+    assert OutlineSampler.of(obj, cfg).antipodal_deg == cfg.physics.cone_tolerance_deg

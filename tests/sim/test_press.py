@@ -12,8 +12,9 @@ from vistac_sim.objects.library import build_object, procedural_library
 from vistac_sim.objects.outlines import CONCAVE_FAMILIES
 from vistac_sim.physics.checks import RejectedSample
 
-# The fingertip sensor frames of contracts.md, as axes in the fingertip body frame (columns x_s,
-# y_s, z_s; body x = approach, z = up): the reference the model's sensor sites must match.
+# The fingertip sensor frames of docs/dataset-format.md, as axes in the fingertip body frame
+# (columns x_s, y_s, z_s; body x = approach, z = up): the reference the model's sensor sites
+# must match.
 SENSOR_FRAMES = {
     "index": np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]], float),  # x_s = -z, y_s = y, z_s = x
     "thumb": np.array([[0, 0, 1], [0, -1, 0], [1, 0, 0]], float),  # x_s = z, y_s = -y, z_s = x

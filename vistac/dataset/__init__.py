@@ -1,7 +1,7 @@
 """The vistac dataset format: the one owner of its names, conventions, readers and writers.
 
-A dataset directory (contracts.md) holds `manifest.json` (written last: a dataset is complete
-only once it exists with ``"complete": true``), `configs.parquet` (one row per grasp
+A dataset directory (docs/dataset-format.md) holds `manifest.json` (written last: a dataset is
+complete only once it exists with ``"complete": true``), `configs.parquet` (one row per grasp
 configuration), `presses.parquet` (one row per press, with the unit labels) and `images/`.
 `vistac generate`, `vistac ingest` and the learner all go through this package, which needs
 neither MuJoCo nor torch:

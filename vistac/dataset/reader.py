@@ -1,7 +1,7 @@
 """Reading a dataset directory: the manifest, both tables and the cones, checked.
 
-`open_dataset` is the one reader of the format (contracts.md) for every consumer: the learner,
-`evaluate`, benchmarks and tests. It refuses an unfinished dataset, names the file, row and
+`open_dataset` is the one reader of the format (docs/dataset-format.md) for every consumer: the
+learner, `evaluate`, benchmarks and tests. It refuses an unfinished dataset, names the file, row and
 reason of any malformed content, and sorts configurations by `config_id`.
 """
 
@@ -150,8 +150,7 @@ def read_manifest(root: Path, require_complete: bool = True) -> dict:
 
     Raises:
         UserError: no such folder, no manifest (an interrupted run is named as such), invalid
-            JSON or not an object, a `format_version` other than this version's (a manifest
-            without one is read as this version's), or (with
+            JSON or not an object, a `format_version` this version does not read, or (with
             `require_complete`) a dataset not marked complete.
     """
     man_path = root / MANIFEST
@@ -168,9 +167,9 @@ def read_manifest(root: Path, require_complete: bool = True) -> dict:
         raise UserError(f"{man_path}: not valid JSON ({exc}); make the dataset again") from None
     if not isinstance(manifest, dict):
         raise UserError(f"{man_path}: not a JSON object; make the dataset again")
-    version = manifest.get("format_version", FORMAT_VERSION)  # hand-made ones may lack it
+    version = manifest.get("format_version")
     if version != FORMAT_VERSION or isinstance(version, bool):
-        what = f"{str(version)[:40]!r}"
+        what = "missing" if version is None else f"{str(version)[:40]!r}"
         newer = isinstance(version, int) and not isinstance(version, bool) \
             and version > FORMAT_VERSION
         raise UserError(f"{man_path}: format_version {what} is not {FORMAT_VERSION}, the one "
@@ -233,7 +232,7 @@ def open_dataset(root: str | Path, require_complete: bool = True) -> DatasetTabl
     """Read and check a dataset directory.
 
     Args:
-        root: The dataset directory (contracts.md layout).
+        root: The dataset directory (docs/dataset-format.md layout).
         require_complete: Refuse a dataset whose manifest lacks ``"complete": true``.
 
     Returns:

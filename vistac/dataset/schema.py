@@ -1,4 +1,6 @@
-"""The dataset's names and conventions (contracts.md): files, fingers, columns and unit labels.
+"""The dataset's names and conventions: files, fingers, columns and unit labels.
+
+The format is described in docs/dataset-format.md.
 
 Every table column that names a finger is built here, so the simulator, `vistac ingest` and the
 learner agree on one spelling.

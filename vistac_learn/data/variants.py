@@ -1,4 +1,4 @@
-"""The study's image variants (thesis.md section 4).
+"""The study's image variants (docs/study.md section 4).
 
 A variant name is ``<mode>-<region>``: mode ``color`` (RGB, 3 channels) or ``edge`` (Canny edges
 of the base image, 1 channel); region ``base`` (the whole rotated image), ``crop`` (both finger

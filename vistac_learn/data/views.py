@@ -11,8 +11,8 @@ Views:
   rotated so that the finger points up (`vistac_learn.data.fingertips` finds tip and axis in the
   image), side `span` fingertip radii, in colour. The thumb's crop is mirrored left-right, so
   that both fingers' labels read in the index finger's convention (the thumb's y axis is the
-  index finger's mirrored, contracts.md) and one network serves both. Output (F, 3, S, S).
-- The study's ``<color|edge>-<base|crop|index|thumb>`` (thesis.md section 4,
+  index finger's mirrored, docs/dataset-format.md) and one network serves both. Output (F, 3, S, S).
+- The study's ``<color|edge>-<base|crop|index|thumb>`` (docs/study.md section 4,
   `vistac_learn.data.variants`): the whole image rotated, optionally cut to the finger boxes.
   Output (C, S, S).
 
@@ -187,7 +187,7 @@ class TipView(View):
 
 
 class StudyView(View):
-    """One of the study's variants (thesis.md section 4), rendered at the sample's angle."""
+    """One of the study's variants (docs/study.md section 4), rendered at the sample's angle."""
 
     def __init__(self, name: str, margin: float = 0.05):
         self.cfg = VariantCfg(name, margin=margin)

@@ -10,9 +10,6 @@ from pathlib import Path
 from typing import Literal
 
 from vistac.config import Config, ConfigError, HelpFormatter, add_options, from_options, param
-from vistac.dataset import read_manifest
-from vistac.dataset.files import check_out_dir
-from vistac.errors import UserError
 from vistac_learn.data.samples import FINGER_CHOICES, ROTATION_MODES, RotationCfg
 from vistac_learn.data.tip_coverage import MAX_MISSING_PCT
 from vistac_learn.train.config import DEVICES
@@ -83,26 +80,12 @@ def add_command(sub: argparse._SubParsersAction) -> None:
 
 
 def _handler(args: argparse.Namespace) -> int:
-    from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
+    from vistac.api import evaluate
 
-    cfg = from_options(EvaluateCfg, args, OPTIONS)
-    if cfg.data is not None:
-        try:
-            read_manifest(Path(cfg.data))
-        except UserError as exc:
-            raise UserError(f"--data {exc}") from None
-    check_out_dir(cfg.out_dir)
-    if cfg.baseline:
-        res = evaluate_baseline(cfg.data, cfg.out_dir, cfg.split, cfg.finger,
-                                RotationCfg(cfg.rotations, cfg.n_rotations), cfg.tta,
-                                not cfg.no_plots, progress=True,
-                                max_missing_pct=cfg.max_missing_pct)
-    else:
-        res = evaluate_run(cfg.run, cfg.data, cfg.split, cfg.tta, cfg.checkpoint, cfg.out,
-                           not cfg.no_plots, cfg.device, progress=True,
-                           cross_dataset=cfg.cross_dataset, max_missing_pct=cfg.max_missing_pct)
-    if res.get("fingertips_line"):
-        print(res["fingertips_line"])
-    print(f"{res['n_predictions']} predictions of {res['n_configs']} configurations; "
-          f"results in {cfg.out_dir}")
+    ev = evaluate(from_options(EvaluateCfg, args, OPTIONS), progress=True)
+    print(ev.table)
+    if ev.result.get("fingertips_line"):
+        print(ev.result["fingertips_line"])
+    print(f"{ev.result['n_predictions']} predictions of {ev.result['n_configs']} "
+          f"configurations; results in {ev.path}")
     return 0

@@ -1,7 +1,7 @@
 """Scoring a trained run (or the geometric baseline) on a split (`vistac evaluate`).
 
-For each finger: every metric of thesis.md section 6 plus angular metrics
-(`vistac_learn.metrics.cone_metrics`), printed as a table in the study's layout (thesis.md
+For each finger: every metric of docs/study.md section 6 plus angular metrics
+(`vistac_learn.metrics.cone_metrics`), printed as a table in the study's layout (docs/study.md
 section 9) and saved, with the per-prediction values and the figures, into an output folder:
 
 - ``metrics.json``: settings, counts, inference speed, the scalar metrics per finger, the table.
@@ -83,7 +83,8 @@ def _write_outputs(
     info: dict,
     make_plots: bool,
 ) -> dict:
-    """Score, print and save (JSON, per-prediction parquet, PNGs); return the JSON dict."""
+    """Score and save (JSON, per-prediction parquet, PNGs); return the JSON dict (its
+    ``table`` is what `vistac evaluate` prints)."""
     out.mkdir(parents=True, exist_ok=True)
     res = score(pred, tables, rows, item_row, fingers, full=True)
     cids = tables.configs["config_id"].to_numpy()
@@ -110,7 +111,6 @@ def _write_outputs(
             plots.plot_error_hist(ps["error_pct"], out / f"error_hist_{f}.png", f"{label} {f}:")
             plots.plot_rotation_spread(ps["angle_deg"], pos, cones,
                                        out / f"rotation_spread_{f}.png", f"{label} {f}:")
-    print(table)
     return result
 
 

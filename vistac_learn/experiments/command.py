@@ -8,7 +8,6 @@ runs (e.g. ``--epochs``, ``--model``, ``--protocol``), as in `vistac tune`.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from pathlib import Path
 
 from vistac.config import (
@@ -23,7 +22,7 @@ from vistac.config import (
 from vistac.dataset.files import check_out_dir
 from vistac.errors import UserError
 from vistac_learn.train.command import OPTIONS
-from vistac_learn.train.config import PROTOCOLS, TrainCfg, check_data, protocol_cfg
+from vistac_learn.train.config import PROTOCOLS, TrainCfg, protocol_cfg
 
 # what each cell sets itself, so not an option of the experiments
 PER_CELL = ("seed", "train_fraction", "init", "freeze", "train_split", "val_split")
@@ -97,41 +96,26 @@ def make_cfg(cls: type, **values):
         raise UserError(f"{flag_of(cls, exc.key)}: {exc.reason}") from None
 
 
-def _max_cells(args: argparse.Namespace) -> int | None:
-    if args.max_cells is not None and args.max_cells < 1:
-        raise UserError(f"--max-cells: must be >= 1, got {args.max_cells}")
-    return args.max_cells
-
-
 def _sim2real(args: argparse.Namespace) -> int:
-    from vistac_learn.experiments import sim2real as S
+    from vistac.api import sim2real
+    from vistac_learn.experiments.sim2real import Sim2RealCfg
 
-    cfg = make_cfg(S.Sim2RealCfg, sim=args.sim, real=args.real, out=args.out,
+    cfg = make_cfg(Sim2RealCfg, sim=args.sim, real=args.real, out=args.out,
                    fractions=tuple(args.fractions), seeds=args.seeds, freeze=args.freeze)
-    S.check_inputs(cfg)
-    cfg = S.resolved(cfg)
-    check_out_dir(cfg.out)
-    base = base_cfg(args, cfg.real)
-    for data in (cfg.sim, cfg.real):
-        for line in check_data(dataclasses.replace(base, data=data), not args.quiet):
-            print(line, flush=True)
-    rows = S.run_sim2real(cfg, base, max_cells=_max_cells(args), progress=not args.quiet)
-    return _done(args.out, len(rows), cfg.seeds * (1 + 2 * len(cfg.fractions)))
+    res = sim2real(cfg, base_cfg(args, cfg.real), max_cells=args.max_cells,
+                   progress=not args.quiet)
+    return _done(args.out, len(res.rows), cfg.seeds * (1 + 2 * len(cfg.fractions)))
 
 
 def _label_noise(args: argparse.Namespace) -> int:
-    from vistac_learn.experiments import label_noise as L
+    from vistac.api import label_noise
+    from vistac_learn.experiments.label_noise import LabelNoiseCfg
 
-    cfg = make_cfg(L.LabelNoiseCfg, data=args.data, out=args.out, levels=tuple(args.levels),
+    cfg = make_cfg(LabelNoiseCfg, data=args.data, out=args.out, levels=tuple(args.levels),
                    seeds=args.seeds)
-    L.check_inputs(cfg)
-    cfg = L.resolved(cfg)
-    check_out_dir(cfg.out)
-    base = base_cfg(args, cfg.data)
-    for line in check_data(base, not args.quiet):
-        print(line, flush=True)
-    rows = L.run_label_noise(cfg, base, max_cells=_max_cells(args), progress=not args.quiet)
-    return _done(args.out, len(rows), len(cfg.levels) * cfg.seeds)
+    res = label_noise(cfg, base_cfg(args, cfg.data), max_cells=args.max_cells,
+                      progress=not args.quiet)
+    return _done(args.out, len(res.rows), len(cfg.levels) * cfg.seeds)
 
 
 def _done(out: str, n: int, total: int) -> int:

@@ -32,6 +32,7 @@ from vistac.config import Config, param
 from vistac.dataset import atomic_write_json, open_dataset, press_row, unit_labels, write_table
 from vistac.dataset.schema import CONFIGS, FINGERS, IMAGES, MANIFEST, PRESSES, clean_force_columns
 from vistac.errors import UserError
+from vistac.folder_lock import hold
 from vistac.noise import relative_force_noise
 from vistac_learn.experiments import cells as C
 from vistac_learn.train.config import TrainCfg
@@ -188,17 +189,18 @@ def run_label_noise(cfg: LabelNoiseCfg, base: TrainCfg, runner: Any = None,
     Raises:
         UserError: an --out holding another experiment or other settings, bad data.
     """
-    out = C.open_experiment(cfg, base, KIND)
-    angles = prepare_data(cfg)
-    cells = make_cells(cfg, base)
+    with hold(cfg.out, "experiment"):
+        out = C.open_experiment(cfg, base, KIND)
+        angles = prepare_data(cfg)
+        cells = make_cells(cfg, base)
 
-    def measure_cell(cell: C.Cell, res: JobResult) -> dict[str, float]:
-        return measure(res, angles[(cell.fields["level"], cell.fields["seed"])])
+        def measure_cell(cell: C.Cell, res: JobResult) -> dict[str, float]:
+            return measure(res, angles[(cell.fields["level"], cell.fields["seed"])])
 
-    def on_rows(rows: list[dict[str, Any]]) -> None:
-        write_outputs(out, cfg, base, rows)
+        def on_rows(rows: list[dict[str, Any]]) -> None:
+            write_outputs(out, cfg, base, rows)
 
-    return C.run_cells(out, cells, METRICS, measure_cell, on_rows, runner, max_cells, progress)
+        return C.run_cells(out, cells, METRICS, measure_cell, on_rows, runner, max_cells, progress)
 
 
 def write_outputs(out: Path, cfg: LabelNoiseCfg, base: TrainCfg,

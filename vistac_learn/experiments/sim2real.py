@@ -22,6 +22,7 @@ from typing import Any
 
 from vistac.config import Config, ConfigError, param
 from vistac.errors import UserError
+from vistac.folder_lock import hold
 from vistac_learn.experiments import cells as C
 from vistac_learn.train.config import FREEZE, TrainCfg
 from vistac_learn.train.job import JobCfg, JobResult, ScoreCfg
@@ -100,13 +101,14 @@ def run_sim2real(cfg: Sim2RealCfg, base: TrainCfg, runner: Any = None,
     Raises:
         UserError: an --out holding another experiment or other settings, bad data.
     """
-    out = C.open_experiment(cfg, base, KIND)
-    cells = make_cells(cfg, base)
+    with hold(cfg.out, "experiment"):
+        out = C.open_experiment(cfg, base, KIND)
+        cells = make_cells(cfg, base)
 
-    def on_rows(rows: list[dict[str, Any]]) -> None:
-        write_outputs(out, cfg, base, rows)
+        def on_rows(rows: list[dict[str, Any]]) -> None:
+            write_outputs(out, cfg, base, rows)
 
-    return C.run_cells(out, cells, METRICS, measure, on_rows, runner, max_cells, progress)
+        return C.run_cells(out, cells, METRICS, measure, on_rows, runner, max_cells, progress)
 
 
 def resolved(cfg: Sim2RealCfg) -> Sim2RealCfg:

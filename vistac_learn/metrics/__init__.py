@@ -1,4 +1,6 @@
-"""Cone metrics of the reference study (thesis.md section 6) plus angular metrics, numerically safe.
+"""Cone metrics of the reference study plus angular metrics, numerically safe.
+
+The study's metrics are described in docs/study.md section 6.
 
 A configuration (object + finger placement) is pressed several times; its unit labels (r_y, r_z)
 span a "cone" of force directions. Directions are compared as slopes m = y / z with z = -1 (the

@@ -226,7 +226,7 @@ def summarize(per_sample: dict[str, np.ndarray], mask: object = None) -> dict[st
 
 
 def cone_metrics(pred: object, cone_of: object, label_sets: Sequence[object]) -> dict:
-    """Every metric of thesis.md section 6 plus angular metrics, summarised and per prediction.
+    """Every metric of docs/study.md section 6 plus angular metrics, summarised and per prediction.
 
     Several predictions may share a configuration (e.g. its 20 rotated images). See the module
     docstring for definitions and the conventions that keep every value finite.

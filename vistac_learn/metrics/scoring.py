@@ -1,6 +1,6 @@
 """Predicting over a pair dataset and scoring predictions with the cone metrics, per finger.
 
-The metric itself is `vistac_learn.metrics.cone_metrics` (thesis.md section 6 plus angular
+The metric itself is `vistac_learn.metrics.cone_metrics` (docs/study.md section 6 plus angular
 metrics); this module only lines predictions up with the cones of their configurations.
 """
 
@@ -14,7 +14,7 @@ import torch
 from vistac_learn.metrics.cone import cone_metrics
 from vistac_learn.models.tipnet import apply_model
 
-# The study's results columns (thesis.md section 9), as (header, summary key).
+# The study's results columns (docs/study.md section 9), as (header, summary key).
 STUDY_COLUMNS = (
     ("% correct y", "correct_y_pct"),
     ("% in cone", "in_cone_pct"),
@@ -102,7 +102,7 @@ def average_over_rotations(pred: np.ndarray, item_row: np.ndarray) -> tuple[np.n
 
 
 def format_table(entries: Sequence[tuple[str, dict]], angles: bool = True) -> str:
-    """A markdown table in the study's layout (thesis.md section 9), one row per entry.
+    """A markdown table in the study's layout (docs/study.md section 9), one row per entry.
 
     Args:
         entries: (label, summary) pairs; a summary is one finger's scalar metrics.

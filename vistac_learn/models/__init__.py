@@ -5,10 +5,10 @@ timm-style registry (`registry`): a builder function is registered with
 string, so that the CLI, the trainer and a tuner pick models by name. A new model is a builder in
 a module of this package (imported below) with that decorator.
 
-- `study`: every architecture of the study (thesis.md section 7): plain conv/max-pool stacks
+- `study`: every architecture of the study (docs/study.md section 7): plain conv/max-pool stacks
   with a ReLU after every convolution and hidden FC layer and the head FC(f, w) -> ReLU ->
   FC(w, w) -> ReLU -> FC(w, 2). The rows the study's tables got wrong (SchoeConv100-V1, -V5,
-  SchoeConv227-V1, -V2) use the reconstruction given in thesis.md.
+  SchoeConv227-V1, -V2) use the reconstruction given in docs/study.md.
 - `baselines`: efficient CPU-sized baselines (not in the study): `resnet-tiny` (0.31 M
   parameters, 60 M MACs at 227 px) and `mobilenetv2-tiny` (0.25 M, 32 M MACs).
 - `tipnet`: the default model, a small CNN on one finger's fingertip crop (48 px, 7.8 M MACs),

@@ -1,10 +1,10 @@
-"""The reference study's architectures (thesis.md section 7), registered in table order.
+"""The reference study's architectures (docs/study.md section 7), registered in table order.
 
 Plain conv/max-pool stacks with a ReLU after every convolution and hidden FC layer and the head
 FC(f, w) -> ReLU -> FC(w, w) -> ReLU -> FC(w, 2). The rows the study's tables got wrong
-(SchoeConv100-V1, -V5, SchoeConv227-V1, -V2) use the reconstruction given in thesis.md. Pools are
-`MaxPool2d(kernel, stride)` without padding, floor mode. No dropout and no batch norm: the table
-lists none.
+(SchoeConv100-V1, -V5, SchoeConv227-V1, -V2) use the reconstruction described in docs/study.md
+section 7. Pools are `MaxPool2d(kernel, stride)` without padding, floor mode. No dropout and no
+batch norm: the table lists none.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from vistac_learn.models.registry import register_model
 
 
 class Conv(NamedTuple):
-    """conv(kernel, stride, in, out, padding) as written in thesis.md section 7."""
+    """conv(kernel, stride, in, out, padding) as written in docs/study.md section 7."""
 
     kernel: int
     stride: int
@@ -230,7 +230,7 @@ def _register_study_model(slug: str) -> None:
         return ConvFCNet(layers, fc_in, fc_width, input_size, in_channels, out_features)
 
     build.__name__ = slug.replace("-", "_")
-    build.__doc__ = f"{display} (thesis.md section 7): {description}."
+    build.__doc__ = f"{display} (docs/study.md section 7): {description}."
     register_model(slug, display=display, description=description)(build)
 
 

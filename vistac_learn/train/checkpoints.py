@@ -1,4 +1,10 @@
-"""Checkpoint files of a run: atomic saves, stale temporaries, starting from another run.
+"""Checkpoint files of a run: atomic saves, safe loads, starting from another run.
+
+A checkpoint holds tensors and plain data only (dicts, lists, numbers, strings): `atomic_save`
+turns NumPy scalars and arrays, tuples' contents and paths into plain values before saving, and
+`load_checkpoint` reads with ``torch.load(weights_only=True)``, which refuses any pickled object
+that is not one of those. A checkpoint from somebody else's run therefore cannot run code: a file
+carrying a pickled call (``os.system`` and the like) is refused with a one-line error.
 
 `init_from_run` (``vistac train --init RUN``) copies RUN's best weights into a new model: every
 tensor whose name and shape match is copied; any other (a head for another number of fingers, a
@@ -10,9 +16,11 @@ every parameter of the feature layers (names containing ``features``) fixed.
 from __future__ import annotations
 
 import io
+import os
 from collections.abc import Sequence
 from pathlib import Path
 
+import numpy as np
 import torch
 
 from vistac.dataset.files import atomic_write_bytes
@@ -20,19 +28,38 @@ from vistac.errors import UserError
 from vistac_learn.train.run_files import read_run_config
 
 
-def atomic_save(obj, path: Path) -> None:
-    """`torch.save` through a temporary file and a rename (a kill leaves the old file).
+def plain(obj):
+    """`obj` with NumPy values, tuples and paths turned into plain Python (tensors kept)."""
+    if isinstance(obj, torch.Tensor | str | int | float | bool) or obj is None:
+        return obj
+    if isinstance(obj, dict):
+        return {plain(k): plain(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [plain(v) for v in obj]
+    if isinstance(obj, np.ndarray | np.generic):
+        return obj.tolist()
+    if isinstance(obj, os.PathLike):
+        return os.fspath(obj)
+    raise TypeError(f"checkpoint: {type(obj).__name__} is not plain data")
+
+
+def atomic_save(obj: dict, path: Path) -> None:
+    """`torch.save` of `obj` as plain data (see `plain`) through a temporary file and a rename
+    (a kill leaves the old file).
 
     The checkpoint is serialised in memory first, so that a failing write (a full disk) is the
     `OSError` of Python's own file write, not an error from inside torch's writer.
     """
     buf = io.BytesIO()
-    torch.save(obj, buf)
+    torch.save(plain(obj), buf)
     atomic_write_bytes(path, buf.getvalue())
 
 
 def load_checkpoint(path: Path, keys: Sequence[str], fix: str, map_location="cpu") -> dict:
-    """A checkpoint written by `atomic_save`, checked: a dict holding `keys`.
+    """A checkpoint written by `atomic_save`, read safely and checked: a dict holding `keys`.
+
+    ``weights_only=True``: tensors and plain data load, any other pickled object is refused
+    unrun.
 
     Args:
         path: The ``.pt`` file.
@@ -41,14 +68,19 @@ def load_checkpoint(path: Path, keys: Sequence[str], fix: str, map_location="cpu
         map_location: Where tensors go.
 
     Raises:
-        UserError: the file is missing, truncated, not a checkpoint or lacks an entry.
+        UserError: the file is missing, truncated, not a checkpoint, lacks an entry or
+            carries pickled objects other than tensors and plain data.
     """
     try:
-        ck = torch.load(path, map_location=map_location, weights_only=False)
+        ck = torch.load(path, map_location=map_location, weights_only=True)
     except FileNotFoundError:
         raise UserError(f"{path}: missing; {fix}") from None
     except Exception as exc:  # truncated or foreign bytes: zipfile, pickle and torch errors
-        reason = " ".join(str(exc).split())[:120] or type(exc).__name__
+        reason = " ".join(str(exc).split())
+        if "weights_only" in reason or "Unsupported global" in reason:
+            raise UserError(f"{path}: holds pickled objects other than tensors and plain data "
+                            f"(refused: loading them could run code); {fix}") from None
+        reason = reason[:120] or type(exc).__name__
         raise UserError(f"{path}: not a readable checkpoint ({reason}); {fix}") from None
     missing = [k for k in keys if not isinstance(ck, dict) or k not in ck]
     if missing:

@@ -65,21 +65,20 @@ def check_paths(cfg: TrainCfg) -> None:
 
 
 def _handler(args: argparse.Namespace) -> int:
-    from vistac_learn.train.job import JobCfg, run_job
+    from vistac.api import train
     from vistac_learn.train.loop import finished
 
     cfg = options_cfg(args)
-    check_paths(cfg)
     done = args.resume and finished(Path(cfg.out), cfg.epochs)
-    res = run_job(JobCfg(cfg, resume="yes" if args.resume else "no", progress=not args.quiet))
-    for line in fingertip_lines(Path(res.run)):
+    run = train(cfg, cfg.data, cfg.out, resume=args.resume, progress=not args.quiet)
+    for line in fingertip_lines(run.path):
         print(line)
     if done:
-        print(f"{res.run}: already trained for {res.epochs} epochs; nothing to do (best epoch "
-              f"{res.best_epoch}, validation median angle {res.objective:.2f} deg)")
+        print(f"{run.path}: already trained for {cfg.epochs} epochs; nothing to do (best epoch "
+              f"{run.best_epoch}, validation median angle {run.objective:.2f} deg)")
         return 0
-    print(f"run written to {res.run} (best epoch {res.best_epoch}, validation median angle "
-          f"{res.objective:.2f} deg)")
+    print(f"run written to {run.path} (best epoch {run.best_epoch}, validation median angle "
+          f"{run.objective:.2f} deg)")
     return 0
 
 

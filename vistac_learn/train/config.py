@@ -7,7 +7,7 @@ Two protocols, each a complete set of defaults (every option overrides either):
   network; AdamW with a one-cycle learning-rate schedule, batches of 32, 30 epochs; mirror and
   crop-jitter augmentation drawn per batch; the best epoch by the validation median angle to
   the cone mean.
-- ``study``: the reference study's protocol (thesis.md section 8): SchoeConv100-V3(FC160) on
+- ``study``: the reference study's protocol (docs/study.md section 8): SchoeConv100-V3(FC160) on
   ``edge-index`` images at 20 fixed rotations of 18 degrees, index finger, MSE, Adam with a
   constant lr 1e-4, weight decay 1e-5, batches of 5, 20 epochs; selection by the validation
   median overall error (the study selected on its test set; we never do).
@@ -51,8 +51,8 @@ class TrainCfg(Config):
     """Everything a training run depends on (written to ``config.json``); defaults: the
     ``default`` protocol (see `PROTOCOLS`)."""
 
-    data: str = param(help="dataset directory")
-    out: str = param(help="run folder to create (or continue)")
+    data: str = param("", help="dataset directory (set by `vistac.train`'s data)")
+    out: str = param("", help="run folder to create or continue (set by `vistac.train`'s out)")
     model: str = param("tipnet", help="registered model name (`vistac models`)")
     variant: str = param(TIP_VIEW, choices=VIEWS, help="what the model sees: tip (fingertip "
                          "crops) or one of the study's image variants")
@@ -124,6 +124,13 @@ class TrainCfg(Config):
             if self.finger not in (region,):
                 raise UserError(f"--finger {self.finger}: variant {self.variant} shows only "
                                 f"the {region} finger; use --finger {region}")
+
+    @classmethod
+    def from_protocol(cls, protocol: str, **changes) -> TrainCfg:
+        """The defaults of a protocol (``default`` or ``study``, see `PROTOCOLS`), with
+        `changes` (any field) on top."""
+        return protocol_cfg(protocol, changes.pop("data", ""), changes.pop("out", ""),
+                            **changes)
 
     def rotation_cfg(self) -> RotationCfg:
         """Rotations of training and validation samples."""

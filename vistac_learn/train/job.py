@@ -11,8 +11,6 @@ the run's fingers) at the epoch the run selected: the test split never enters it
 
 from __future__ import annotations
 
-import contextlib
-import io
 import time
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
@@ -107,9 +105,8 @@ def run_job(cfg: JobCfg) -> JobResult:
     objective = sum(row[f"val_{f}_{OBJECTIVE}"] for f in fingers) / len(fingers)
     scores = {}
     for s in cfg.scores:
-        with contextlib.redirect_stdout(io.StringIO()):  # the table is in metrics.json
-            res = evaluate_run(out, data=s.data, split=s.split, out=out / "eval" / s.name,
-                               make_plots=False, cross_dataset=s.data is not None)
+        res = evaluate_run(out, data=s.data, split=s.split, out=out / "eval" / s.name,
+                           make_plots=False, cross_dataset=s.data is not None)
         scores[s.name] = res["metrics"]
     return JobResult(str(out), float(objective), int(best), len(rows),
                      float(rows[0]["train_loss"]),

@@ -36,6 +36,7 @@ import io
 import json
 import math
 import platform
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import asdict
@@ -48,6 +49,7 @@ from tqdm import tqdm
 from vistac.dataset import open_dataset
 from vistac.dataset.files import atomic_write_bytes, atomic_write_json, remove_stale_temporaries
 from vistac.errors import UserError
+from vistac.folder_lock import hold
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import fingers_of
 from vistac_learn.metrics.scoring import predict, score_predictions
@@ -194,8 +196,15 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
 
     Raises:
         UserError: Bad settings or data, an existing run folder without ``resume``, a resume
-            with other settings or another dataset, a training loss that is not finite.
+            with other settings or another dataset, a training loss that is not finite, a run
+            folder that another process holds.
     """
+    with hold(cfg.out, "train"):
+        return _train(cfg, resume, progress, on_batch)
+
+
+def _train(cfg: TrainCfg, resume: bool, progress: bool,
+           on_batch: Callable[[int, int], None] | None) -> Path:
     out = Path(cfg.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: exists and is not a folder")
@@ -268,7 +277,7 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
                                                          train_ds, val_ds, device, init_note)
                           | {"fingertips": {c.split: c.as_dict() for c in coverage}})
         if init_note and progress:
-            tqdm.write(f"init: {init_note['summary']}")
+            tqdm.write(f"init: {init_note['summary']}", file=sys.stderr)
 
     def save_last(epoch: int, batch: int) -> None:
         atomic_save({
@@ -334,7 +343,8 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
                 tqdm.write(
                     f"epoch {epoch + 1}/{cfg.epochs}: train loss {row['train_loss']:.4g}, "
                     f"val loss {val_loss:.4g}, {cfg.select} {value:.4g}"
-                    + (" (best)" if improved else "") + f", {row['epoch_s']:.1f} s")
+                    + (" (best)" if improved else "") + f", {row['epoch_s']:.1f} s",
+                    file=sys.stderr)
     except TrainingDiverged as exc:  # mark the run, so that a rerun into --out starts over
         meta = json.loads((out / "config.json").read_text())
         atomic_write_json(out / "config.json", meta | {"diverged": {"epoch": exc.epoch,

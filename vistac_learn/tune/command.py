@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 
 from vistac.config import HelpFormatter, add_options, from_options
-from vistac.engine import ENGINE_OPTIONS, EngineCfg, preflight
+from vistac.engine import ENGINE_OPTIONS, EngineCfg
 from vistac.errors import UserError
-from vistac_learn.train.command import OPTIONS, check_paths, options_cfg
-from vistac_learn.train.config import PROTOCOLS, TrainCfg, check_data
+from vistac_learn.train.command import OPTIONS, options_cfg
+from vistac_learn.train.config import PROTOCOLS, TrainCfg
 from vistac_learn.tune.engines import TRIAL_OPTIONS, TrialCfg
 
 
@@ -45,46 +45,26 @@ def add_command(sub: argparse._SubParsersAction) -> None:
 
 
 def _handler(args: argparse.Namespace) -> int:
-    from vistac_learn.tune.driver import TuneCfg, check_folder, no_success, run_tune
-    from vistac_learn.tune.engines import tune_runner
+    from vistac.api import tune
     from vistac_learn.tune.space import load_space
 
     engine = from_options(EngineCfg, args, ENGINE_OPTIONS)
     trial = from_options(TrialCfg, args, TRIAL_OPTIONS)
-    if engine.engine == "local":
-        for name in TRIAL_OPTIONS:
-            if getattr(trial, name) != getattr(TrialCfg(), name):
-                raise UserError(f"--{name.replace('_', '-')}: needs --engine ray")
     space = load_space(args.space)
     for d in space.dims:
         if getattr(args, d.name) is not None:
             flag = "--" + d.name.replace("_", "-")
             raise UserError(f"{flag}: tuned (in the search space); drop it, or take it out of "
                             "the space with --space")
-    base = options_cfg(args)
-    if engine.engine == "ray" and base.device == "cuda" and trial.trial_gpus == 0:
-        raise UserError("--device cuda: with --engine ray a trial sees only the GPUs Ray gives "
-                        "it; give each one with --trial-gpus (e.g. 1)")
-    check_paths(base)
-    try:
-        cfg = TuneCfg(out=args.out, trials=args.trials, seed=args.tune_seed)
-    except UserError as exc:
-        raise UserError(f"--{str(exc).replace('seed:', 'tune-seed:')}") from None
-    check_folder(cfg, base, space, args.resume)
-    for line in check_data(base, progress=not args.quiet):
-        print(line, flush=True)
-    preflight(engine)
-    with tune_runner(engine, base, trial, progress=not args.quiet) as runner:
+
+    def started(k: int) -> None:
         if engine.engine == "ray" and not args.quiet:
-            k = runner.concurrency
             print(f"tune on Ray: {k} trial{'s' if k > 1 else ''} at once ({trial.trial_cpus:g} "
                   f"CPU, {trial.trial_gpus:g} GPU each)", flush=True)
-        res = run_tune(cfg, base, space, resume=args.resume, runner=runner,
-                       progress=not args.quiet)
-    if res.best is None:
-        raise UserError(f"--out {args.out}: no trial succeeded ({no_success(res.rows)}); "
-                        "nothing is best (see trials.csv); narrow the space (e.g. lower lr "
-                        "bounds with --space) or check the data")
+
+    res = tune(options_cfg(args), args.data, args.out, trials=args.trials, space=args.space,
+               seed=args.tune_seed, resume=args.resume, engine=engine, trial=trial,
+               progress=not args.quiet, on_start=started)
     params = ", ".join(f"{d.name}={res.best[d.name]:.4g}" for d in space.dims)
     print(f"best of {len(res.rows)} trials: trial {res.best['trial']}, validation median "
           f"angle {res.best['objective']:.2f} deg ({params}); {args.out}/best.json")

@@ -48,6 +48,7 @@ from tqdm import tqdm
 from vistac.config import Config, param, to_dict
 from vistac.dataset.files import atomic_write_bytes, atomic_write_json
 from vistac.errors import UserError
+from vistac.folder_lock import hold
 from vistac_learn.train.config import TrainCfg
 from vistac_learn.train.job import JobCfg, JobResult, LocalRunner
 from vistac_learn.train.loop import TrainingDiverged
@@ -248,8 +249,15 @@ def run_tune(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool = False
         The finished trials and the best.
 
     Raises:
-        UserError: a folder that holds another tuning, a resume with other settings, bad data.
+        UserError: a folder that holds another tuning, a resume with other settings, bad data,
+            a folder that another process holds.
     """
+    with hold(cfg.out, "tune"):
+        return _run_tune(cfg, base, space, resume, runner, progress)
+
+
+def _run_tune(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool, runner: Any,
+              progress: bool) -> TuneResult:
     from vistac_learn.tune.plots import plot_convergence
 
     runner = runner or LocalRunner()

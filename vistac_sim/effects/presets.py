@@ -21,10 +21,9 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from vistac.config import apply
 from vistac.errors import UserError
+from vistac.safe_yaml import load_yaml
 from vistac_sim.effects import EffectsCfg
 from vistac_sim.recording.config import RecordingCfg
 
@@ -56,6 +55,9 @@ PRESETS: dict[str, dict[str, Any]] = {
         "table": True,
     }},
 }
+SCENE_SUFFIXES = (".yaml", ".yml", ".toml")
+MAX_SCENE_BYTES = 1 << 20
+"""A scene file is a few settings: anything larger is a mistake (or an attack), refused unread."""
 # The parts of the generate config a scene file may set, with their config classes.
 SECTIONS = {"effects": EffectsCfg, "recording": RecordingCfg}
 
@@ -93,22 +95,32 @@ def resolve(preset: str | None = None, scene: str | Path | None = None,
 def load_scene(path: str | Path) -> dict[str, Any]:
     """Read a scene file into a dict (top level checked against the known sections).
 
+    YAML is read by `vistac.safe_yaml.load_yaml` (alias expansion bounded, ``1e-2`` a number).
+
     Raises:
-        UserError: missing file, unknown suffix, a parse error, or a non-table top level.
+        UserError: missing file, unknown suffix, a file too large, a parse error, an alias
+            bomb, or a non-table top level.
     """
     path = Path(path)
     if not path.is_file():
         raise UserError(f"{path}: no such scene file")
     suffix = path.suffix.lower()
+    if suffix not in SCENE_SUFFIXES:
+        raise UserError(f"{path}: scene files are YAML (.yaml, .yml) or TOML (.toml)")
+    if path.stat().st_size > MAX_SCENE_BYTES:
+        raise UserError(f"{path}: {path.stat().st_size} bytes; a scene file holds at most "
+                        f"{MAX_SCENE_BYTES} (a few settings)")
     try:
-        if suffix in (".yaml", ".yml"):
-            data = yaml.safe_load(path.read_text()) or {}
-        elif suffix == ".toml":
-            data = tomllib.loads(path.read_text())
+        text = path.read_text()
+        if suffix == ".toml":
+            data = tomllib.loads(text)
         else:
-            raise UserError(f"{path}: scene files are YAML (.yaml, .yml) or TOML (.toml)")
-    except (yaml.YAMLError, tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-        raise UserError(f"{path}: cannot parse: {' '.join(str(exc).split())}") from exc
+            data = load_yaml(text, str(path))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise UserError(f"{path}: cannot parse: {' '.join(str(exc).split())}") from None
+    except RecursionError:
+        raise UserError(f"{path}: lists or tables nested too deeply") from None
+    data = {} if data is None else data
     if not isinstance(data, dict):
         raise UserError(f"{path}: the top level must be a table of settings")
     unknown = set(data) - {"preset", *SECTIONS}

@@ -18,7 +18,7 @@ from vistac.config import (
 )
 from vistac.engine import ENGINE_OPTIONS, WRITES_OPTIONS, EngineCfg
 from vistac.errors import UserError
-from vistac_sim.effects.presets import PRESETS, resolve
+from vistac_sim.effects.presets import PRESETS
 from vistac_sim.generate.config import GenerateCfg
 
 # Config fields set by options, in the order `--help` lists them (between the others below).
@@ -71,13 +71,10 @@ def generate_cfg_from_args(args: argparse.Namespace) -> GenerateCfg:
     Raises:
         UserError: an option, preset or scene file value its field does not allow.
     """
-    cfg = apply(GenerateCfg(), option_values(args, GenerateCfg, OPTIONS),
+    base = GenerateCfg.from_preset(args.preset, scene=args.scene, noise=args.noise,
+                                   recordings=args.recordings)
+    cfg = apply(base, option_values(args, GenerateCfg, OPTIONS),
                 labels=flag_labels(GenerateCfg, OPTIONS))
-    cfg.effects, cfg.recording = resolve(args.preset, args.scene, args.noise)
-    cfg.recording.write = cfg.recording.write or args.recordings
-    for path in cfg.objects.paths:
-        if not Path(path).exists():
-            raise UserError(f"--objects {path}: no such file or folder")
     return cfg
 
 
@@ -111,28 +108,18 @@ def drop_unstarted_run(out: Path, existed: bool) -> None:
 
 
 def _generate(args: argparse.Namespace) -> int:
-    from vistac_sim.generate.processes import start_fork_server, stop_fork_server
+    from vistac.api import generate
+    from vistac_sim.generate.objects_report import format_summary
 
     cfg = generate_cfg_from_args(args)
-    workers = check_workers(args.workers)
     engine = from_options(EngineCfg, args, ENGINE_OPTIONS + WRITES_OPTIONS)
-    if engine.engine == "local" and workers > 1:
-        start_fork_server()  # the workers' imports run beside this process's own, below
-    try:
-        from vistac.dataset.files import check_out_dir
-        from vistac_sim.generate.objects_report import format_summary
-        from vistac_sim.generate.run import generate
-
-        out = check_out_dir(args.out)
-        existed = out.exists()
-        try:
-            manifest = generate(cfg, args.out, workers=workers, resume=args.resume,
-                                progress=not args.no_progress, engine=engine)
-        except BaseException:
-            drop_unstarted_run(out, existed)
-            raise
-    finally:
-        stop_fork_server()
+    dataset = generate(cfg, args.out, workers=args.workers, resume=args.resume,
+                       progress=not args.no_progress, engine=engine)
+    manifest = dataset.manifest
+    if dataset.already_complete:
+        print(f"nothing to do: {args.out} holds the complete dataset "
+              f"({manifest['counts']['configs']} configurations), checked")
+        return 0
     summary = {k: manifest[k] for k in ("counts", "redraws", "wall_time_s")}
     print(format_summary(manifest["per_object"]))
     print(f"wrote {args.out}: " + json.dumps(summary))

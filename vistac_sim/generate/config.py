@@ -8,13 +8,16 @@ can refuse to continue a run made with other settings.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from vistac.config import Config, ConfigError, param, to_dict
 from vistac.dataset import SplitCfg
 from vistac_sim.effects import EffectsCfg
+from vistac_sim.effects.presets import resolve
 from vistac_sim.objects.config import ObjectsCfg
 from vistac_sim.physics.config import PhysicsCfg
 from vistac_sim.recording.config import RecordingCfg
@@ -35,7 +38,9 @@ class GraspCfg(Config):
     closing_spread_deg: float = param(
         20.0, ge=0, lt=90,
         help="max degrees of the hand's closing axis (the push of both fingers) off the index "
-        "target's inward normal; the thumb closes along the same axis, where it meets the object")
+        "target's inward normal; the thumb closes along the same axis, where it meets the object "
+        "(where the friction cone plus cone_tolerance_deg is narrower, both pushes are drawn "
+        "within it: antipodal grasps)")
     max_push_angle_deg: float = param(
         50.0, ge=0, lt=90,
         help="max degrees between the closing axis and the thumb target's surface normal "
@@ -44,9 +49,12 @@ class GraspCfg(Config):
                              help="per configuration, before the run fails loudly")
 
 
-@dataclass
+@dataclass(frozen=True)
 class GenerateCfg(Config):
-    """Everything `vistac generate` needs. Sub-trees default to their own defaults."""
+    """Everything `vistac generate` needs. Sub-trees default to their own defaults.
+
+    Frozen: a preset or scene file is resolved where the config is made (`from_preset`,
+    `from_file`); change a copy with `dataclasses.replace` or `vistac.config.apply`."""
 
     n: int = param(200, ge=1, le=10_000_000, help="number of grasp configurations")
     seed: int = param(0, ge=0, lt=2**32, help="seed of everything the run draws")
@@ -77,6 +85,38 @@ class GenerateCfg(Config):
                 f"{self.render.image_size} px draws a fingertip {tip_px:.1f} px across; the "
                 f"overlay needs >= {MIN_TIP_PIXELS} px to be found: use >= {need} px (or a "
                 f"smaller view_extent)"))
+
+    @classmethod
+    def from_preset(cls, preset: str | None = None, *, scene: str | Path | None = None,
+                    noise: float | None = None, recordings: bool = False,
+                    **fields: Any) -> GenerateCfg:
+        """A complete config from a named effect preset (``clean``, ``lab``, ``harsh``).
+
+        Args:
+            preset: The preset; None takes the scene file's ``preset``, else ``clean``.
+            scene: A YAML or TOML scene file merged over the preset (see `from_file`).
+            noise: Relative per-press force noise; wins over the scene file's ``effects.noise``.
+            recordings: Also write the RH8D/FTS-3 recording CSVs.
+            **fields: Any other field of the config, e.g. ``n=200, seed=1`` or
+                ``physics=PhysicsCfg(friction=0.5)``.
+
+        Raises:
+            UserError: an unknown preset, an unreadable scene file, a value a field refuses.
+        """
+        effects, recording = resolve(preset, scene, noise)
+        if recordings and not recording.write:
+            recording = dataclasses.replace(recording, write=True)
+        return cls(effects=effects, recording=recording, **fields)
+
+    @classmethod
+    def from_file(cls, path: str | Path, *, preset: str | None = None,
+                  noise: float | None = None, recordings: bool = False,
+                  **fields: Any) -> GenerateCfg:
+        """A complete config from a scene file (its ``preset``, ``effects``, ``recording``).
+
+        `preset` and `noise`, when given, win over the file's; see `from_preset`.
+        """
+        return cls.from_preset(preset, scene=path, noise=noise, recordings=recordings, **fields)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain JSON-able dict of the whole tree (tuples become lists)."""

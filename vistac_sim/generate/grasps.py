@@ -9,6 +9,16 @@ frame, drawn in the image) points within `approach_spread_deg` of its target's i
 whole finger (tip and shaft) must fit beside the object in its start pose, and the two fingers
 must not overlap. What cannot be met is a `RejectedSample`.
 
+Friction: a push outside the friction cone (half-angle atan(friction)) makes the pad slip until
+its force lies on the cone's edge, which the press allows (the label is then the slipped force).
+Without friction there is no edge to stop at, and such draws mostly end with a force off the
+surface normal. So where the cone, widened by the check's tolerance (`cone_tolerance_deg`), is
+narrower than `closing_spread_deg`, grasps are antipodal pairs within it: the closing axis is
+drawn within the cone of the index's normal and the thumb's target must lie where the surface
+normal is within the cone of the axis (`OutlineSampler.antipodal`). At the default friction 0.8
+the cone (41.7 degrees) is wider than the closing spread (20), so this never applies and the draws
+are those of before.
+
 Grasps are drawn against the collision geometry that MuJoCo simulates: the outline is the section
 of the object's convex collision pieces at the press height. For an object whose walls are not
 vertical (a mesh) the pieces are also sliced at several heights across the tip: the outline is
@@ -40,6 +50,13 @@ if TYPE_CHECKING:
 # Heights across the tip (fractions of its radius above and below the axis) where the collision
 # pieces of a mesh are sliced for the "finger fits" check.
 CLEARANCE_LEVELS = (-0.95, -0.85, -0.7, -0.5, -0.25, 0.25, 0.5, 0.7, 0.85, 0.95)
+ANTIPODAL_TRIES = 200
+"""Index targets tried per draw for an antipodal pair (geometry only, ~30 us each)."""
+
+
+def cone_limit_deg(friction: float, tolerance_deg: float) -> float:
+    """Half-angle of the friction cone widened by the physical check's tolerance, degrees."""
+    return math.degrees(math.atan(friction)) + tolerance_deg
 
 
 class OutlineSampler:
@@ -66,6 +83,10 @@ class OutlineSampler:
         self.keep_out = ((section, cfg.hand.tip_radius), *clearance)
         for geom, _ in self.keep_out:
             shapely.prepare(geom)
+        cone = cone_limit_deg(cfg.physics.friction, cfg.physics.cone_tolerance_deg)
+        self.antipodal_deg = cone if cone < cfg.grasp.closing_spread_deg else None
+        """Pushes within this many degrees of both normals (antipodal pairs), or None: the
+        friction cone is wider than the configured spreads."""
 
     @classmethod
     def of(cls, obj: SceneObject, cfg: GenerateCfg) -> OutlineSampler:
@@ -168,6 +189,29 @@ class OutlineSampler:
         tk = float(t[k])
         return [point[0] + tk * dx, point[1] + tk * dy], self._outline[2][k]
 
+    def antipodal(self, rng: np.random.Generator, limit_deg: float):
+        """An antipodal pair: index target and normal, closing axis within `limit_deg` of the
+        index's inward normal, thumb target and normal within `limit_deg` of the axis; tried at
+        up to `ANTIPODAL_TRIES` index targets.
+
+        Returns:
+            (index point, index normal, closing axis, thumb point, thumb normal).
+
+        Raises:
+            RejectedSample: "no_opposing_thumb" when no try gave a pair.
+        """
+        for _ in range(ANTIPODAL_TRIES):
+            p_i, n_i = self._point(rng)
+            close = self._turned(rng, n_i, limit_deg)
+            try:
+                p_t, n_t = self.far_crossing(p_i, close)
+            except RejectedSample:
+                continue
+            if _off_deg(close, n_t) <= min(limit_deg, self.cfg.grasp.max_push_angle_deg):
+                return p_i, n_i, close, p_t, n_t
+        raise RejectedSample("no_opposing_thumb", f"no antipodal pair within {limit_deg:.1f} deg "
+                             f"in {ANTIPODAL_TRIES} index targets")
+
     def sample(self, rng: np.random.Generator) -> Grasp:
         """Draw one grasp in world coordinates.
 
@@ -179,15 +223,23 @@ class OutlineSampler:
         g, h = self.cfg.grasp, self.cfg.hand
         yaw = float(rng.uniform(-np.pi, np.pi))
         xy = rng.uniform(-0.01, 0.01, 2)
-        p_i, n_i = self._point(rng)
-        close = self._turned(rng, n_i, g.closing_spread_deg)  # the index's push
-        p_t, n_t = self.far_crossing(p_i, close)
-        off = math.degrees(math.acos(min(max(close[0] * n_t[0] + close[1] * n_t[1], -1.0), 1.0)))
-        if off > g.max_push_angle_deg:
-            raise RejectedSample("no_opposing_thumb", f"the thumb's surface is {off:.0f} deg off "
-                                 f"the closing axis (limit {g.max_push_angle_deg:g})")
+        if self.antipodal_deg is not None:
+            p_i, n_i, close, p_t, n_t = self.antipodal(rng, self.antipodal_deg)
+        else:
+            p_i, n_i = self._point(rng)
+            close = self._turned(rng, n_i, g.closing_spread_deg)  # the index's push
+            p_t, n_t = self.far_crossing(p_i, close)
+            off = _off_deg(close, n_t)
+            if off > g.max_push_angle_deg:
+                raise RejectedSample("no_opposing_thumb", f"the thumb's surface is {off:.0f} deg "
+                                     f"off the closing axis (limit {g.max_push_angle_deg:g})")
         target, normal = [p_i, p_t], [n_i, n_t]
         approach = [self._turned(rng, n, g.approach_spread_deg) for n in normal]
         push = [close, [-close[0], -close[1]]]
         self._check_axes(cap_starts(target, normal, push, h.tip_radius, h.standoff), approach)
         return to_world(yaw, xy, target, normal, approach, push)
+
+
+def _off_deg(axis, normal) -> float:
+    """Degrees between the closing axis and the outward normal where it leaves the object."""
+    return math.degrees(math.acos(min(max(axis[0] * normal[0] + axis[1] * normal[1], -1.0), 1.0)))

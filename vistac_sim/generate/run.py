@@ -23,8 +23,9 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from vistac.dataset import files
+from vistac.dataset import MANIFEST, files
 from vistac.engine import EngineCfg, preflight
+from vistac.folder_lock import hold
 from vistac_sim.effects import build_pipeline
 from vistac_sim.generate import shards
 from vistac_sim.generate.config import GenerateCfg
@@ -35,6 +36,7 @@ from vistac_sim.generate.processes import (
     stop_fork_server,
     worker_pool,
 )
+from vistac_sim.generate.verify import check_complete
 from vistac_sim.objects.specs import ObjectSpec, object_index, procedural_library
 
 VERSIONED = ("mujoco", "numpy", "trimesh")  # what decides the bytes of a dataset
@@ -147,16 +149,20 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
         out: dataset folder to create (or to resume).
         workers: worker processes; 0 means all cores, 1 runs in this process (with the Ray
             engine: the CPUs of a local Ray instance).
-        resume: continue an interrupted run made with the same settings.
+        resume: continue an interrupted run made with the same settings (its committed
+            files checked first); on a complete dataset made with them, check it and return
+            its manifest with ``"already_complete": true`` (not written), doing nothing else.
         progress: show a progress bar with rate and ETA.
         engine: local processes (default) or Ray tasks (`vistac_sim.generate.on_ray`).
 
     Raises:
         UserError: bad options, bad meshes or objects without a valid grasp (strict), no
-            usable object, or an `out` that cannot be used.
+            usable object, an `out` that cannot be used or that another process holds, or
+            (resume) damaged state in it.
     """
     try:
-        return _generate(cfg, Path(out), workers, resume, progress, engine or EngineCfg())
+        with hold(out, "generate"):
+            return _generate(cfg, Path(out), workers, resume, progress, engine or EngineCfg())
     finally:
         stop_fork_server()
 
@@ -165,6 +171,8 @@ def _generate(cfg: GenerateCfg, out: Path, workers: int, resume: bool, progress:
               engine: EngineCfg) -> dict:
     t0 = time.perf_counter()
     preflight(engine)
+    if resume and (out / MANIFEST).exists():  # finished: checked, then nothing to do
+        return {**check_complete(out, cfg.to_dict()), "already_complete": True}
     workers = min(workers or mp.cpu_count(), mp.cpu_count())
     specs, skipped = object_specs(cfg, cfg.seed)
     specs, unusable, repairs, versions = _screen(specs, cfg, workers, progress)

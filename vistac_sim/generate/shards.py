@@ -9,7 +9,6 @@ resumed from its finished shards.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 from collections import Counter
@@ -30,6 +29,8 @@ from vistac.dataset.files import (
 )
 from vistac.dataset.schema import CONFIGS, IMAGES, PARTIAL, PRESSES
 from vistac.errors import UserError
+from vistac_sim.generate.verify import damaged_files, read_run_state
+from vistac_sim.recording.layout import recording_name
 
 SHARD = ".arrow"
 """Shards are Arrow IPC files: ~5x cheaper to write and read back than Parquet, and they only
@@ -86,23 +87,28 @@ def _readable(path: Path) -> bool:
 def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
     """Prepare `out` for a run and return the chunks already finished.
 
+    With `resume`, what the interrupted run left is checked before it is trusted: its state
+    file (`verify.read_run_state`), its shards (a shard that does not read back is made again)
+    and the images and recordings of its committed chunks (a chunk with a missing or torn file
+    is made again). Without `resume`, a folder whose run state is damaged (an interrupted run
+    that cannot be resumed) is started over.
+
     Raises:
         UserError: `out` holds a complete dataset, holds something else, or (with resume) an
-            interrupted run made with different settings.
+            interrupted run made with different settings or whose state file is damaged.
     """
     partial = out / PARTIAL
     state_file = partial / "run.json"
     if (out / MANIFEST).exists():
-        raise UserError(f"{out}: already holds a complete dataset; choose another --out")
+        raise UserError(f"{out}: already holds a complete dataset; choose another --out "
+                        "(--resume checks it and does nothing)")
     if partial.is_dir() and not finished_chunks(out):  # stopped before its first shard
-        shutil.rmtree(partial)
-        shutil.rmtree(out / IMAGES, ignore_errors=True)
-        shutil.rmtree(out / "recordings", ignore_errors=True)
+        _discard_run(out)
         resume = False
     if resume:
-        if not state_file.exists():
+        if not partial.is_dir():
             raise UserError(f"{out}: nothing to resume (no interrupted run found there)")
-        previous = json.loads(state_file.read_text())
+        previous = read_run_state(state_file)
         if previous != run_state:
             diff = sorted(k for k in set(previous) | set(run_state)
                           if previous.get(k) != run_state.get(k))
@@ -111,7 +117,9 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
         for folder in (partial / "shards", out / IMAGES, out / "recordings"):
             if folder.is_dir():
                 remove_stale_temporaries(folder)
-        return finished_chunks(out)
+        return checked_chunks(out, bool(run_state["config"]["recording"]["write"]))
+    if partial.is_dir() and _state_damaged(state_file):  # cannot be resumed: start over
+        _discard_run(out)
     if out.exists() and any(out.iterdir()):
         hint = " (an interrupted run: add --resume)" if state_file.exists() else ""
         raise UserError(f"{out}: folder exists and is not empty{hint}")
@@ -119,6 +127,44 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
     (out / IMAGES).mkdir(parents=True, exist_ok=True)
     atomic_write_json(state_file, run_state)
     return set()
+
+
+def _discard_run(out: Path) -> None:
+    """Remove what an interrupted run made (its state, images and recordings)."""
+    shutil.rmtree(out / PARTIAL)
+    shutil.rmtree(out / IMAGES, ignore_errors=True)
+    shutil.rmtree(out / "recordings", ignore_errors=True)
+
+
+def _state_damaged(state_file: Path) -> bool:
+    try:
+        read_run_state(state_file)
+    except UserError:
+        return True
+    return False
+
+
+def checked_chunks(out: Path, recordings: bool) -> set[int]:
+    """The finished chunks whose images (and, if the run writes them, `recordings`) are all
+    present and whole; the shards of the others are deleted, so that they are made again
+    (rewriting their files)."""
+    done = set()
+    for chunk in sorted(finished_chunks(out)):
+        cpath = shard_paths(out, chunk)[0]
+        try:
+            with pa.OSFile(str(cpath)) as fh:
+                table = pa.ipc.open_file(fh).read_all()
+            images = table["image"].to_pylist()
+            ids = table["config_id"].to_pylist()
+        except (OSError, KeyError, pa.ArrowException):
+            images, ids = None, []
+        csvs = [recording_name(int(i)) for i in ids] if recordings else []
+        if images is not None and not damaged_files(out, images, csvs):
+            done.add(chunk)
+        else:
+            for p in shard_paths(out, chunk):
+                p.unlink(missing_ok=True)
+    return done
 
 
 MERGE_ROWS = 5_000

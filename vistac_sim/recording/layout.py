@@ -1,4 +1,5 @@
-"""Recording CSVs in the RH8D/FTS-3 layout (contracts.md): one header line, one line per sample.
+"""Recording CSVs in the RH8D/FTS-3 layout (docs/dataset-format.md): one header line, one line
+per sample.
 
 Columns (0-based): 0 time in ms, 1 sample number, 2-9 servo positions of the RH8D's eight
 actuators (ticks, 0-4095), 10-13 servo currents of thumb adduction/flexion, index and middle

@@ -27,10 +27,16 @@ if TYPE_CHECKING:
 
 @dataclass
 class Session:
-    """A simulated session: envelopes, peak samples, true and measured force series."""
+    """A simulated session: envelope, press of each sample, peaks, true and measured series.
+
+    Presses never overlap, so one (T,) envelope and the press each sample belongs to describe
+    them all: memory is linear in the number of presses (a (T, K) table of per-press envelopes
+    would grow with its square: 10 GiB at 3000 presses).
+    """
 
     dt: float  # s per sample
-    weights: np.ndarray  # (T, K) envelope of each press (0 outside it, 1 at its peak)
+    envelope: np.ndarray  # (T,) envelope of the session (0 at rest, 1 at each press's peak)
+    press: np.ndarray  # (T,) index of the press each sample belongs to, -1 at rest
     peaks: np.ndarray  # (K,) sample index of each press's peak
     true: np.ndarray  # (T, 2, 3) force on the pads, N, sensor frame
     measured: np.ndarray  # (T, 2, 3) after the sensor effects
@@ -40,15 +46,10 @@ class Session:
         """(K, 2, 3) per-press readings: the measured series at each peak."""
         return self.measured[self.peaks]
 
-    @property
-    def envelope(self) -> np.ndarray:
-        """(T,) envelope of the whole session (presses do not overlap)."""
-        return self.weights.sum(axis=1)
-
 
 def press_envelopes(k: int, cfg: RecordingCfg, rng: np.random.Generator
-                    ) -> tuple[np.ndarray, np.ndarray]:
-    """Envelopes of K presses in a row and their peak samples.
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Envelopes of K presses in a row, the press of each sample and the peak samples.
 
     Args:
         k: number of presses.
@@ -56,7 +57,8 @@ def press_envelopes(k: int, cfg: RecordingCfg, rng: np.random.Generator
         rng: draws the per-press durations.
 
     Returns:
-        (T, K) weights (each column one press: 0 outside, exactly 1 at its peak) and (K,) peaks.
+        (T,) envelope (0 at rest, exactly 1 at each peak), (T,) press index of each sample
+        (-1 at rest) and (K,) peaks.
     """
     rate = cfg.rate_hz
     jitter = rng.uniform(1 - cfg.timing_jitter, 1 + cfg.timing_jitter, (k, 4))
@@ -64,7 +66,8 @@ def press_envelopes(k: int, cfg: RecordingCfg, rng: np.random.Generator
     counts = np.maximum(np.round(base * jitter), 2).astype(int)
     lead = max(int(round(cfg.rest_s * rate)), 2)
     total = lead + int(counts.sum())
-    weights = np.zeros((total, k))
+    envelope = np.zeros(total)
+    press = np.full(total, -1, dtype=np.int64)
     peaks = np.zeros(k, dtype=int)
     start = lead
     for p, (n_rise, n_hold, n_rel, n_rest) in enumerate(counts):
@@ -74,10 +77,11 @@ def press_envelopes(k: int, cfg: RecordingCfg, rng: np.random.Generator
                                                    / (cfg.relax_s * rate)))
         release = hold[-1] * 0.5 * (1.0 + np.cos(np.pi * np.arange(1, n_rel + 1) / n_rel))
         env = np.r_[rise, hold, release]
-        weights[start:start + len(env), p] = env
+        envelope[start:start + len(env)] = env
+        press[start:start + len(env)] = p
         peaks[p] = start + n_rise - 1
         start += len(env) + n_rest
-    return weights, peaks
+    return envelope, press, peaks
 
 
 def simulate_session(forces: np.ndarray, pipeline: Pipeline, cfg: RecordingCfg,
@@ -96,8 +100,11 @@ def simulate_session(forces: np.ndarray, pipeline: Pipeline, cfg: RecordingCfg,
         The session; ``session.readings`` are the per-press readings.
     """
     k = len(forces)
-    weights, peaks = press_envelopes(k, cfg, profile_rng)
-    true = (weights @ forces.reshape(k, -1)).reshape(len(weights), *forces.shape[1:])
+    envelope, press, peaks = press_envelopes(k, cfg, profile_rng)
+    # each sample: its press's force times the envelope (0.0 at rest, as the product of the
+    # former (T, K) envelope table with the forces gave)
+    flat = np.vstack([forces.reshape(k, -1), np.zeros((1, forces[0].size))])
+    true = (envelope[:, None] * flat[press]).reshape(len(envelope), *forces.shape[1:])
     dt = 1.0 / cfg.rate_hz
     measured = pipeline.apply_sensor(true, dt, sensor_rng)
-    return Session(dt, weights, peaks, true, measured)
+    return Session(dt, envelope, press, peaks, true, measured)

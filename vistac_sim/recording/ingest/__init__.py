@@ -1,9 +1,9 @@
 """`vistac ingest`: RH8D/FTS-3 recordings (or the study's label spreadsheets) + images -> dataset.
 
-The study's tactile preprocessing (thesis.md, section 3), made automatic:
+The study's tactile preprocessing (docs/study.md, section 3), made automatic:
 
-1. Read each recording CSV (one header line; force columns from a `ColumnMap`, contracts.md's
-   layout by default; integer mN by default).
+1. Read each recording CSV (one header line; force columns from a `ColumnMap`, by default
+   the layout of docs/dataset-format.md; integer mN by default).
 2. Split the series into grasps: a grasp starts where |index F_z| rises above `threshold` and
    ends where it falls back to or below it; empty segments cannot occur (each segment has at
    least one sample above the threshold).
@@ -25,7 +25,7 @@ The study's tactile preprocessing (thesis.md, section 3), made automatic:
      `min_force` (its direction is not resolved: at 20 mN the 1 mN grid alone moves it up to
      ~3 degrees; the thumb may also simply not touch);
    - ``pulling``: at the representative sample a finger's F_z >= 0 (the surface can only push,
-     F_z < 0 in contact; contracts.md). Off with `allow_pulling`.
+     F_z < 0 in contact; docs/dataset-format.md). Off with `allow_pulling`.
 
 5. Each kept grasp becomes a press: forces in N (sensor frame) and the unit labels
    r = (F_y, F_z)/|(F_y, F_z)| per finger (`vistac.dataset.unit_labels`, as `generate`).
@@ -33,8 +33,9 @@ The study's tactile preprocessing (thesis.md, section 3), made automatic:
 
 Repeats are numbered by segment, rejected ones included (the k-th grasp of a recording is
 ``repeat`` k), so that ingested presses join generated ones on (`config_id`, `repeat`). A
-configuration keeps the id its file names (``000123.csv`` <-> ``000123.png``: 123); when some
-name is not a number, ids are 0..N-1 in name order and the name stays in the `recording` column.
+configuration keeps the id its file names (``000123.csv`` <-> ``000123.png``: 123), whatever
+the other files are called; names that are not numbers are numbered after the largest number
+name (from 0 when there is none) in name order, and every name stays in the `recording` column.
 Configurations without a kept grasp are left out (a dataset's configuration needs presses) and
 listed in the manifest. Every rejected grasp is listed in ``rejected.csv`` (and counted by reason
 in the manifest).

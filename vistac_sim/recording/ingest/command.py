@@ -11,7 +11,6 @@ from vistac.dataset import SplitCfg
 from vistac.dataset.files import check_out_dir
 from vistac.errors import UserError
 from vistac_sim.recording.ingest.config import ColumnMap, IngestCfg, IngestSources
-from vistac_sim.recording.ingest.run import ingest
 
 SOURCE_OPTIONS = ("recordings", "images", "labels", "labels_sheet")
 CFG_OPTIONS = ("threshold", "unit")
@@ -46,6 +45,8 @@ def add_command(sub: argparse._SubParsersAction) -> None:
 
 
 def _run_ingest(args: argparse.Namespace) -> int:
+    from vistac.api import ingest
+
     try:
         columns = ColumnMap(tuple(args.columns[:3]), tuple(args.columns[3:]))
     except ConfigError as exc:
@@ -55,7 +56,7 @@ def _run_ingest(args: argparse.Namespace) -> int:
     split = from_options(SplitCfg, args, SPLIT_OPTIONS)
     src = from_options(IngestSources, args, (*SOURCE_OPTIONS, "objects_csv", "seed",
                                              "image_size"), split=split)
-    manifest = ingest(src, args.out, cfg)
+    manifest = ingest(src, args.out, cfg).manifest
     print(f"wrote {args.out}: " + json.dumps({"counts": manifest["counts"],
                                               "rejected": manifest["rejected"]["by_reason"]}))
     return 0

@@ -14,7 +14,7 @@ UNITS = {"mN": 1e-3, "N": 1.0}  # unit of the CSV's force cells -> newtons
 
 @dataclass(frozen=True)
 class ColumnMap(Config):
-    """0-based CSV columns of each finger's F_x, F_y, F_z (contracts.md by default)."""
+    """0-based CSV columns of each finger's F_x, F_y, F_z (docs/dataset-format.md by default)."""
 
     thumb: tuple[int, int, int] = param(FORCE_COLUMNS["thumb"], ge=0, le=100_000)
     index: tuple[int, int, int] = param(FORCE_COLUMNS["index"], ge=0, le=100_000)

@@ -158,17 +158,40 @@ def files_by_stem(folder: Path, suffixes: tuple[str, ...], what: str) -> dict[st
     return out
 
 
+MAX_NAMED_ID = 2**53
+"""A name that is a number below this keeps it as its id (beyond it, ids lose precision in the
+float columns of tools that read the tables)."""
+
+
+def named_id(name: str) -> int | None:
+    """The configuration id a file name gives (``000123`` -> 123), or None when it is not a
+    number (ASCII digits only: ``int`` would also read ``"١٢"`` or ``"1_0"``)."""
+    if name.isascii() and name.isdigit() and int(name) < MAX_NAMED_ID:
+        return int(name)
+    return None
+
+
 def config_ids(names: list[str]) -> dict[str, int]:
-    """Configuration id of each name: the number it is, or 0..N-1 in name order."""
-    if all(n.isdigit() for n in names):
-        ids = {n: int(n) for n in names}
-        seen: dict[int, str] = {}
-        for n, i in ids.items():
-            if i in seen:
-                raise UserError(f"names {seen[i]!r} and {n!r} give the same configuration id {i}")
-            seen[i] = n
-        return ids
-    return {n: i for i, n in enumerate(sorted(names))}
+    """Configuration id of each name: the number it is; names that are not numbers follow the
+    largest such number (or 0) in name order. A number name's id never depends on the other
+    files (an odd name added or removed renumbers nothing else).
+
+    Raises:
+        UserError: two names that give the same number (``7`` and ``007``).
+    """
+    ids: dict[str, int] = {}
+    seen: dict[int, str] = {}
+    for n in sorted(names):
+        i = named_id(n)
+        if i is None:
+            continue
+        if i in seen:
+            raise UserError(f"names {seen[i]!r} and {n!r} give the same configuration id {i}")
+        ids[n], seen[i] = i, n
+    start = max(seen, default=-1) + 1
+    odd = sorted(n for n in names if n not in ids)
+    ids.update((n, start + k) for k, n in enumerate(odd))
+    return {n: ids[n] for n in names}
 
 
 def match_names(recordings: dict[str, Path], images: dict[str, Path], rec_dir: Path,

@@ -29,6 +29,7 @@ from vistac.dataset.schema import (
     normal_columns,
 )
 from vistac.errors import UserError
+from vistac.folder_lock import hold
 from vistac_sim.recording.ingest.config import IngestCfg, IngestSources
 from vistac_sim.recording.ingest.preprocess import REASONS, Grasp, preprocess
 from vistac_sim.recording.ingest.readers import (
@@ -51,8 +52,14 @@ def ingest(src: IngestSources, out: str | Path, cfg: IngestCfg | None = None) ->
         The manifest.
 
     Raises:
-        UserError: unusable inputs (every message names the file and line) or `out` in use.
+        UserError: unusable inputs (every message names the file and line) or `out` in use
+            (not empty, or held by another process).
     """
+    with hold(out, "ingest"):
+        return _ingest(src, out, cfg)
+
+
+def _ingest(src: IngestSources, out: str | Path, cfg: IngestCfg | None) -> dict:
     t0 = time.perf_counter()
     out, cfg = Path(out), cfg or IngestCfg()
     if src.recordings is None and src.labels is None:

@@ -1,0 +1,341 @@
+"""The Python API: every `vistac` command as a function that returns what it made.
+
+```python
+import vistac
+ds  = vistac.generate(vistac.GenerateCfg(n=200, seed=1), out="data/d")     # -> vistac.Dataset
+ds  = vistac.open_dataset("data/d")                                         # read back
+run = vistac.train(vistac.TrainCfg(epochs=2), data="data/d", out="runs/r")  # -> vistac.Run
+ev  = vistac.evaluate(run)        # or a run folder; ev.metrics == metrics.json's "metrics"
+```
+
+The `vistac` command is a thin layer over these functions: it turns options into the same
+configs, calls the same function and prints its summary. Hence:
+
+- configs are complete where they are made (`GenerateCfg.from_preset`, `.from_file`,
+  `TrainCfg.from_protocol`) and check themselves;
+- bad input raises `vistac.errors.UserError` carrying the one line the CLI prints (the CLI
+  names options, e.g. ``--data ...``; the message is the same from Python);
+- nothing is written to stdout; ``progress=True`` draws progress bars on stderr;
+- the same config and seed give the same bytes from Python and from the CLI.
+
+This module imports neither MuJoCo nor torch; each function imports its half when called.
+Generation with worker processes starts a fork server that imports the calling script's main
+module, so call `generate` from a script under ``if __name__ == "__main__":`` (as with any
+`multiprocessing` start method but "fork").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from vistac.errors import UserError
+from vistac.outputs import Dataset, Evaluation, Report, Run
+
+if TYPE_CHECKING:  # the configs live beside the code that uses them
+    from vistac.engine import EngineCfg
+    from vistac_learn.evaluate.command import EvaluateCfg
+    from vistac_learn.experiments.label_noise import LabelNoiseCfg
+    from vistac_learn.experiments.sim2real import Sim2RealCfg
+    from vistac_learn.train.config import TrainCfg
+    from vistac_learn.tune.engines import TrialCfg
+    from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.recording.ingest.config import IngestCfg, IngestSources
+
+
+# ------------------------------------------------------------------------------- datasets
+def generate(cfg: GenerateCfg, out: str | Path, *, workers: int = 0, resume: bool = False,
+             progress: bool = False, engine: EngineCfg | None = None) -> Dataset:
+    """Simulate `cfg.n` grasp configurations into the dataset folder `out`.
+
+    Args:
+        cfg: The generation config (its seed included); see `GenerateCfg.from_preset`.
+        out: Dataset folder to create (or, with `resume`, to continue).
+        workers: Worker processes; 0: all cores (capped at the cores, with a note on stderr);
+            1: everything in this process.
+        resume: Continue an interrupted run made with the same settings.
+        progress: Progress bar on stderr.
+        engine: Local processes (default) or Ray tasks (`vistac.engine.EngineCfg`).
+
+    Returns:
+        The finished dataset.
+
+    Raises:
+        UserError: a missing ``--objects`` path, an unusable `out`, bad meshes (strict), no
+            usable object.
+    """
+    from vistac.dataset.files import check_out_dir
+    from vistac.engine import EngineCfg
+    from vistac_sim.generate.command import check_workers, drop_unstarted_run
+    from vistac_sim.generate.processes import start_fork_server, stop_fork_server
+
+    for path in cfg.objects.paths:
+        if not Path(path).exists():
+            raise UserError(f"--objects {path}: no such file or folder")
+    workers = check_workers(workers)
+    engine = engine or EngineCfg()
+    out = check_out_dir(out)
+    if engine.engine == "local" and workers > 1:
+        start_fork_server()  # the workers' imports run beside this process's own, below
+    try:
+        from vistac_sim.generate.run import generate as run_generation
+
+        existed = out.exists()
+        try:
+            manifest = run_generation(cfg, out, workers=workers, resume=resume,
+                                      progress=progress, engine=engine)
+        except BaseException:
+            drop_unstarted_run(out, existed)
+            raise
+    finally:
+        stop_fork_server()
+    return Dataset(out, already_complete=bool(manifest.get("already_complete")))
+
+
+def open_dataset(path: str | Path) -> Dataset:
+    """A complete dataset folder, checked (manifest, both tables, labels) on opening.
+
+    Raises:
+        UserError: not a dataset, an unfinished one, or malformed content (file, row, reason).
+    """
+    ds = Dataset(Path(path))
+    ds.tables  # noqa: B018 (reads and checks it now, so that a bad folder fails here)
+    return ds
+
+
+def ingest(sources: IngestSources, out: str | Path, cfg: IngestCfg | None = None) -> Dataset:
+    """Turn RH8D/FTS-3 recordings (or label spreadsheets) and their images into a dataset.
+
+    Args:
+        sources: Where the recordings, images and optional labels are, and the split.
+        out: Dataset folder to create.
+        cfg: Grasp detection and rejection criteria (default `IngestCfg()`).
+
+    Raises:
+        UserError: unreadable or inconsistent inputs, an unusable `out`.
+    """
+    from vistac.dataset.files import check_out_dir
+    from vistac_sim.recording.ingest.config import IngestCfg
+    from vistac_sim.recording.ingest.run import ingest as run_ingest
+
+    out = check_out_dir(out)
+    run_ingest(sources, out, cfg or IngestCfg())
+    return Dataset(out)
+
+
+# ------------------------------------------------------------------------------- learning
+def train(cfg: TrainCfg, data: str | Path, out: str | Path, *, resume: bool = False,
+          progress: bool = False) -> Run:
+    """Train a model on dataset `data` into the run folder `out`.
+
+    Args:
+        cfg: The training settings (`TrainCfg()` is the default recipe,
+            `TrainCfg.from_protocol("study")` the reference study's); its ``data`` and ``out``
+            are replaced by the arguments.
+        data: Dataset folder.
+        out: Run folder to create (or, with `resume`, to continue).
+        resume: Continue the run in `out` (same settings and dataset).
+        progress: Progress bars and a line per epoch on stderr.
+
+    Returns:
+        The run, with its selected epoch and validation objective.
+
+    Raises:
+        UserError: an incomplete dataset, an unusable `out`, `--init` not a finished run,
+            a diverged training (`TrainingDiverged`).
+    """
+    from vistac_learn.train.command import check_paths
+    from vistac_learn.train.job import JobCfg, run_job
+
+    cfg = dataclasses.replace(cfg, data=str(data), out=str(out))
+    check_paths(cfg)
+    res = run_job(JobCfg(cfg, resume="yes" if resume else "no", progress=progress))
+    return Run(Path(res.run), res.best_epoch, res.objective)
+
+
+def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
+             **options: Any) -> Evaluation:
+    """Score a run (or a baseline) on a dataset split with the study's metrics.
+
+    Args:
+        target: A `Run`, a run folder, or a complete `EvaluateCfg` (e.g. the geometric
+            baseline: ``EvaluateCfg(baseline="geometric", data=D, out=O)``).
+        progress: Progress bars on stderr.
+        **options: Fields of `EvaluateCfg` when `target` is a run: ``split`` ("test"),
+            ``tta``, ``checkpoint``, ``data``, ``out``, ``no_plots``, ``device``,
+            ``cross_dataset``.
+
+    Returns:
+        The score; ``.metrics`` is ``metrics.json``'s ``"metrics"``, ``.table`` the study's
+        table.
+
+    Raises:
+        UserError: not a run folder, a dataset other than the run's (without
+            ``cross_dataset``), an unusable output folder.
+    """
+    from vistac.config import ConfigError
+    from vistac.dataset import read_manifest
+    from vistac.dataset.files import check_out_dir
+    from vistac_learn.data.samples import RotationCfg
+    from vistac_learn.evaluate.command import EvaluateCfg
+    from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
+
+    if isinstance(target, EvaluateCfg):
+        if options:
+            raise TypeError("give the options in the EvaluateCfg, not beside it")
+        cfg = target
+    else:
+        run = target.path if isinstance(target, Run) else Path(target)
+        try:
+            cfg = EvaluateCfg(run=str(run), **options)
+        except ConfigError as exc:
+            raise UserError(f"--{exc.key.replace('_', '-')}: {exc.reason}") from None
+    if cfg.data is not None:
+        try:
+            read_manifest(Path(cfg.data))
+        except UserError as exc:
+            raise UserError(f"--data {exc}") from None
+    out = check_out_dir(cfg.out_dir)
+    if cfg.baseline:
+        res = evaluate_baseline(cfg.data, out, cfg.split, cfg.finger,
+                                RotationCfg(cfg.rotations, cfg.n_rotations), cfg.tta,
+                                not cfg.no_plots, progress=progress,
+                                max_missing_pct=cfg.max_missing_pct)
+    else:
+        res = evaluate_run(cfg.run, cfg.data, cfg.split, cfg.tta, cfg.checkpoint, out,
+                           not cfg.no_plots, cfg.device, progress=progress,
+                           cross_dataset=cfg.cross_dataset, max_missing_pct=cfg.max_missing_pct)
+    return Evaluation(out, res)
+
+
+def tune(base: TrainCfg, data: str | Path, out: str | Path, *, trials: int = 20,
+         space: str | Path | None = None, seed: int = 0, resume: bool = False,
+         engine: EngineCfg | None = None, trial: TrialCfg | None = None,
+         progress: bool = False, on_start: Callable[[int], None] | None = None) -> Report:
+    """Tune training options by Bayesian optimisation on the validation split.
+
+    Args:
+        base: The trials' settings apart from the tuned ones (the search space's).
+        data: Dataset folder.
+        out: Tuning folder to create (or, with `resume`, to continue).
+        trials: Trials in total.
+        space: YAML or JSON file changing the search space (default: log10 lr, log10 weight
+            decay, batch size, crop jitter).
+        seed: Seed of the optimiser.
+        resume: Continue the tuning in `out`.
+        engine: Local (default) or Ray tasks.
+        trial: Resources of a trial on Ray (`TrialCfg`).
+        progress: Progress bar on stderr.
+        on_start: Called once the engine is up, with the number of trials run at once.
+
+    Returns:
+        The finished trials (rows of ``trials.csv``) and the best one.
+
+    Raises:
+        UserError: bad settings, a tuned option also fixed in `base`, a folder holding another
+            tuning.
+    """
+    from vistac.engine import EngineCfg, preflight
+    from vistac_learn.train.command import check_paths
+    from vistac_learn.train.config import check_data
+    from vistac_learn.tune.driver import TuneCfg, check_folder, no_success, run_tune
+    from vistac_learn.tune.engines import TRIAL_OPTIONS, TrialCfg, tune_runner
+    from vistac_learn.tune.space import load_space
+
+    engine, trial = engine or EngineCfg(), trial or TrialCfg()
+    if engine.engine == "local":
+        for name in TRIAL_OPTIONS:
+            if getattr(trial, name) != getattr(TrialCfg(), name):
+                raise UserError(f"--{name.replace('_', '-')}: needs --engine ray")
+    search = load_space(space)
+    base = dataclasses.replace(base, data=str(data), out=str(out))
+    if engine.engine == "ray" and base.device == "cuda" and trial.trial_gpus == 0:
+        raise UserError("--device cuda: with --engine ray a trial sees only the GPUs Ray gives "
+                        "it; give each one with --trial-gpus (e.g. 1)")
+    check_paths(base)
+    try:
+        cfg = TuneCfg(out=str(out), trials=trials, seed=seed)
+    except UserError as exc:
+        raise UserError(f"--{str(exc).replace('seed:', 'tune-seed:')}") from None
+    check_folder(cfg, base, search, resume)
+    _notes(check_data(base, progress=progress), progress)
+    preflight(engine)
+    with tune_runner(engine, base, trial, progress=progress) as runner:
+        if on_start is not None:
+            on_start(runner.concurrency)
+        res = run_tune(cfg, base, search, resume=resume, runner=runner, progress=progress)
+    if res.best is None:
+        raise UserError(f"--out {out}: no trial succeeded ({no_success(res.rows)}); nothing is "
+                        "best (see trials.csv); narrow the space (e.g. lower lr bounds with "
+                        "--space) or check the data")
+    return Report(Path(out), res.rows, res.best)
+
+
+def sim2real(cfg: Sim2RealCfg, base: TrainCfg, *, max_cells: int | None = None,
+             progress: bool = False) -> Report:
+    """Pretrain on simulation, fine-tune on fractions of real data (`Sim2RealCfg`).
+
+    Args:
+        cfg: The experiment (datasets, fractions, seeds, folder).
+        base: The runs' training settings (each cell sets its seed, fraction, init and splits).
+        max_cells: Stop after this many new cells (call again to continue).
+        progress: Progress bar on stderr.
+
+    Returns:
+        The trained cells (rows of ``cells.csv``); the report is ``cfg.out/report.md``.
+    """
+    from vistac.dataset.files import check_out_dir
+    from vistac_learn.experiments import sim2real as S
+    from vistac_learn.train.config import check_data
+
+    S.check_inputs(cfg)
+    cfg = S.resolved(cfg)
+    check_out_dir(cfg.out)
+    _check_max_cells(max_cells)
+    base = dataclasses.replace(base, data=cfg.real, out=str(Path(cfg.out) / "runs"))
+    for data in (cfg.sim, cfg.real):
+        _notes(check_data(dataclasses.replace(base, data=data), progress), progress)
+    rows = S.run_sim2real(cfg, base, max_cells=max_cells, progress=progress)
+    return Report(Path(cfg.out), rows)
+
+
+def label_noise(cfg: LabelNoiseCfg, base: TrainCfg, *, max_cells: int | None = None,
+                progress: bool = False) -> Report:
+    """Accuracy against the level of label noise (`LabelNoiseCfg`).
+
+    Args:
+        cfg: The experiment (dataset with clean forces, levels, seeds, folder).
+        base: The runs' training settings (each cell sets its seed).
+        max_cells: Stop after this many new cells (call again to continue).
+        progress: Progress bar on stderr.
+
+    Returns:
+        The trained cells (rows of ``cells.csv``); the report is ``cfg.out/report.md``.
+    """
+    from vistac.dataset.files import check_out_dir
+    from vistac_learn.experiments import label_noise as L
+    from vistac_learn.train.config import check_data
+
+    L.check_inputs(cfg)
+    cfg = L.resolved(cfg)
+    check_out_dir(cfg.out)
+    _check_max_cells(max_cells)
+    base = dataclasses.replace(base, data=cfg.data, out=str(Path(cfg.out) / "runs"))
+    _notes(check_data(base, progress), progress)
+    rows = L.run_label_noise(cfg, base, max_cells=max_cells, progress=progress)
+    return Report(Path(cfg.out), rows)
+
+
+def _notes(lines: list[str], progress: bool) -> None:
+    """Lines worth a user's eye (fingertips not found per split), on stderr with progress."""
+    if progress:
+        for line in lines:
+            print(line, file=sys.stderr, flush=True)
+
+
+def _check_max_cells(max_cells: int | None) -> None:
+    if max_cells is not None and max_cells < 1:
+        raise UserError(f"--max-cells: must be >= 1, got {max_cells}")

@@ -1,0 +1,186 @@
+"""What the Python API returns: handles on the folders it wrote (a dataset, a run, a score).
+
+Each handle is a small frozen dataclass around a folder; the tables and files are read on first
+use (pandas on demand, torch never), so holding one costs nothing. The folders are the contract
+(docs/dataset-format.md): a handle reads exactly what the CLI's users read.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+from vistac.errors import UserError
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """A complete dataset folder (written by `vistac.generate` or `vistac.ingest`).
+
+    Attributes:
+        path: The dataset folder.
+        already_complete: `generate` with ``resume`` found the dataset complete (checked) and
+            did nothing.
+    """
+
+    path: Path
+    already_complete: bool = False
+
+    @cached_property
+    def tables(self):
+        """The checked tables (`vistac.dataset.reader.DatasetTables`), read once."""
+        from vistac.dataset import open_dataset
+
+        return open_dataset(self.path)
+
+    @cached_property
+    def manifest(self) -> dict[str, Any]:
+        """The parsed ``manifest.json``: full config, seed, versions, counts, effects (read
+        without the tables)."""
+        from vistac.dataset.schema import MANIFEST
+
+        return json.loads((self.path / MANIFEST).read_text())
+
+    @property
+    def configs(self):
+        """``configs.parquet`` as a DataFrame, one row per configuration, sorted by config_id."""
+        return self.tables.configs
+
+    @property
+    def presses(self):
+        """``presses.parquet`` as a DataFrame, one row per press, with the unit labels."""
+        return self.tables.presses
+
+    @property
+    def config_ids(self) -> list[int]:
+        """The configuration ids, ascending."""
+        return [int(c) for c in self.configs["config_id"]]
+
+    def image_path(self, config_id: int) -> Path:
+        """The PNG of configuration `config_id`.
+
+        Raises:
+            UserError: no such configuration.
+        """
+        rows = self.configs.index[self.configs["config_id"] == config_id]
+        if len(rows) == 0:
+            raise UserError(f"{self.path}: no configuration {config_id}")
+        return self.tables.image_path(int(rows[0]))
+
+    def image(self, config_id: int):
+        """The image of configuration `config_id`: (H, W, 3) uint8 RGB array."""
+        import cv2
+
+        path = self.image_path(config_id)
+        bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if bgr is None:
+            raise UserError(f"{path}: cannot read the image")
+        return bgr[:, :, ::-1].copy()
+
+    def __len__(self) -> int:
+        return len(self.configs)
+
+
+@dataclass(frozen=True)
+class Run:
+    """A training run folder (written by `vistac.train`).
+
+    Attributes:
+        path: The run folder.
+        best_epoch: The epoch selected on the validation split (1-based).
+        objective: Validation median angle to the cone mean at that epoch (deg, mean over the
+            fingers).
+    """
+
+    path: Path
+    best_epoch: int
+    objective: float
+
+    @classmethod
+    def open(cls, path: str | Path) -> Run:
+        """The run in folder `path` (trained to at least one checkpoint)."""
+        path = Path(path)
+        config = path / "config.json"
+        if not config.is_file():
+            raise UserError(f"{path}: not a run folder (no config.json)")
+        rows = _read_metrics(path / "metrics.csv")
+        if not rows:
+            raise UserError(f"{path}: the run has not finished an epoch (no metrics.csv rows)")
+        best = _best_epoch(path)
+        fingers = json.loads(config.read_text()).get("fingers") or _fingers(rows)
+        row = next((r for r in rows if int(r["epoch"]) == best), rows[-1])
+        objective = sum(row[f"val_{f}_angle_to_mean_median_deg"] for f in fingers) / len(fingers)
+        return cls(path, best, float(objective))
+
+    @cached_property
+    def config(self) -> dict[str, Any]:
+        """The parsed ``config.json``: every setting, the dataset's path and fingerprint."""
+        return json.loads((self.path / "config.json").read_text())
+
+    @property
+    def history(self) -> list[dict[str, float]]:
+        """The rows of ``metrics.csv``, one per epoch (training loss, validation metrics)."""
+        return _read_metrics(self.path / "metrics.csv")
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """A scored run or baseline (written by `vistac.evaluate`).
+
+    Attributes:
+        path: The output folder (``metrics.json``, ``predictions.parquet``, figures).
+        result: The whole content of ``metrics.json``.
+    """
+
+    path: Path
+    result: dict[str, Any] = field(repr=False)
+
+    @property
+    def metrics(self) -> dict[str, dict[str, float]]:
+        """Finger -> scalar metric -> value (``metrics.json``'s ``"metrics"``)."""
+        return self.result["metrics"]
+
+    @property
+    def table(self) -> str:
+        """The markdown table in the reference study's layout (what `vistac evaluate` prints)."""
+        return self.result["table"]
+
+
+@dataclass(frozen=True)
+class Report:
+    """A finished tuning or experiment folder and its rows.
+
+    Attributes:
+        path: The folder.
+        rows: One dict per finished trial or trained cell.
+        best: Tuning only: the best trial's row (None before any trial finished).
+    """
+
+    path: Path
+    rows: list[dict[str, Any]] = field(repr=False)
+    best: dict[str, Any] | None = None
+
+
+def _read_metrics(path: Path) -> list[dict[str, float]]:
+    if not path.is_file():
+        return []
+    with path.open() as fh:
+        return [{k: float(v) for k, v in r.items() if v != ""} for r in csv.DictReader(fh)]
+
+
+def _best_epoch(run: Path) -> int:
+    import torch
+
+    path = run / "checkpoints" / "best.pt"
+    if not path.is_file():
+        raise UserError(f"{run}: the run has no best checkpoint (checkpoints/best.pt)")
+    ck = torch.load(path, map_location="cpu", weights_only=True)
+    return int(ck["epoch"])
+
+
+def _fingers(rows: list[dict[str, float]]) -> list[str]:
+    return [f for f in ("index", "thumb") if f"val_{f}_angle_to_mean_median_deg" in rows[0]]
