@@ -169,6 +169,15 @@ def cache(change: Callable[[Path], None]) -> Callable:
     return damage
 
 
+def finished(command: str, name: str, change: Callable[[bytes], bytes]) -> Callable:
+    """A finished tuning or experiment in {out} (made by `command`), one of its files changed."""
+    def damage(env, case_dir: Path, out: Path) -> dict:
+        assert main(command.format(out=out, **env["paths"]).split()) == 0
+        (out / name).write_bytes(change((out / name).read_bytes()))
+        return {}
+    return damage
+
+
 def space_file(params: dict) -> Callable:
     def setup(env, case_dir: Path, out: Path) -> dict:
         case_dir.mkdir(parents=True, exist_ok=True)
@@ -226,6 +235,17 @@ CASES = [
          space_file({"lr": {"low": 1e3, "high": 1e4, "scale": "log"}}), good=(TUNE_OK,)),
     Case("train-size-beyond-memory", T.replace("--size 16", "--size 1024")
          + " --batch-size 65536", "GiB"),
+    Case("tune-trials-csv-cut", TUNE_OK + " --resume", "", finished(TUNE_OK, "trials.csv", half),
+         code=0, good=(TUNE_OK + " --resume",)),
+    Case("tune-pending-json-text", TUNE_OK + " --resume", "",
+         finished(TUNE_OK, "pending.json", lambda b: b"{1: 2"), code=0,
+         good=(TUNE_OK + " --resume",)),
+    Case("tune-config-truncated", TUNE_OK + " --resume", "",
+         finished(TUNE_OK, "config.json", half), code=0, good=(TUNE_OK + " --resume",)),
+    Case("experiment-cells-cut", NOISE_OK, "", finished(NOISE_OK, "cells.csv", half), code=0,
+         good=(NOISE_OK,)),
+    Case("experiment-config-truncated", NOISE_OK, "", finished(NOISE_OK, "config.json", half),
+         code=0, good=(NOISE_OK,)),
     # ------------------------------------------------ damaged datasets
     Case("data-format-version-99", _bad_data(T), "format_version",
          manifest(lambda m: m | {"format_version": 99})),
@@ -481,3 +501,17 @@ def test_a_trial_is_recorded_once_whatever_the_moment_of_the_kill(tmp_path, monk
         rows = pd.read_csv(Path(cfg.out) / "trials.csv")
         assert rows["trial"].tolist() == [0, 1, 2, 3], k
     assert kills >= 12
+
+
+def test_a_damaged_trials_table_is_replayed_as_it_was(env, tmp_path, capsys):
+    """--resume over a cut trials.csv scores the trials again from their run folders: the same
+    trials, options and objectives."""
+    out = tmp_path / "tune"
+    cmd = _argv(TUNE_OK.replace("--trials 1", "--trials 2"), env["paths"], out)
+    assert main(cmd) == 0
+    before = pd.read_csv(out / "trials.csv")
+    (out / "trials.csv").write_bytes(half((out / "trials.csv").read_bytes()))
+    assert main([*cmd, "--resume"]) == 0
+    after = pd.read_csv(out / "trials.csv")
+    keep = [c for c in before.columns if c != "seconds"]
+    pd.testing.assert_frame_equal(after[keep], before[keep])

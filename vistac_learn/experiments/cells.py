@@ -83,8 +83,11 @@ def check_folder(out: Path, meta: dict[str, Any], kind: str) -> None:
         UserError: naming the folder and the settings that differ.
     """
     path = out / CONFIG
-    if path.exists():
-        saved = json.loads(path.read_text())
+    saved = _read_config(path) if path.exists() else None
+    if path.exists() and saved is None:  # damaged: recorded again from these settings (each
+        atomic_write_json(path, meta)  # cell's run checks its own settings when it continues)
+        return
+    if saved is not None:
         if saved.get("experiment") != kind:
             raise UserError(f"--out {out}: holds a {saved.get('experiment')} experiment, not "
                             f"{kind}; choose another --out")
@@ -101,6 +104,15 @@ def check_folder(out: Path, meta: dict[str, Any], kind: str) -> None:
     atomic_write_json(path, meta)
 
 
+def _read_config(path: Path) -> dict | None:
+    """An experiment's parsed ``config.json``, or None when it is damaged."""
+    try:
+        saved = json.loads(path.read_bytes())
+    except (OSError, UnicodeDecodeError, ValueError):
+        return None
+    return saved if isinstance(saved, dict) else None
+
+
 def _differences(saved: dict, meta: dict, prefix: str = "") -> list[str]:
     out = []
     for k in sorted(set(saved) | set(meta)):
@@ -113,11 +125,21 @@ def _differences(saved: dict, meta: dict, prefix: str = "") -> list[str]:
 
 
 def read_rows(path: Path) -> list[dict[str, Any]]:
-    """The rows of a ``cells.csv`` (numbers as floats or ints, other values as strings)."""
+    """The rows of a ``cells.csv`` (numbers as floats or ints, other values as strings).
+
+    A damaged row (cut short, extra fields, an unknown status) or file is left out: its cell
+    runs again, continuing its run folder, and records what it recorded before.
+    """
     if not path.exists():
         return []
-    with path.open() as fh:
-        return [{k: _parse(v) for k, v in r.items()} for r in csv.DictReader(fh)]
+    try:
+        with path.open(newline="") as fh:
+            raw = list(csv.DictReader(fh))
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return []
+    return [{k: _parse(v) for k, v in r.items()} for r in raw
+            if None not in r and None not in r.values() and r.get("cell")
+            and r.get("status") in ("ok", "diverged", "skipped")]
 
 
 def _parse(v: str) -> Any:
