@@ -423,6 +423,24 @@ def test_a_full_disk_while_saving_a_checkpoint_is_one_line(env, tmp_path, monkey
     assert main(_argv(T, env["paths"], out)) == 0
 
 
+@pytest.mark.parametrize("where", ["evaluate", "tune"])
+def test_a_full_disk_while_scoring_or_tuning_is_one_line(env, tmp_path, monkeypatch, capsys,
+                                                         where):
+    """Scores and tuning tables are written through `atomic_write_bytes`: a full disk there is
+    one line, and the command again (a tuning: with --resume) then works."""
+    import vistac_learn.evaluate.run as ev
+    import vistac_learn.tune.driver as tu
+
+    out = tmp_path / where
+    cmd = _argv(E if where == "evaluate" else TUNE_OK, env["paths"], out)
+    monkeypatch.setattr(ev if where == "evaluate" else tu, "atomic_write_bytes", _enospc)
+    assert main(cmd) == 2
+    lines = _shown(capsys.readouterr().err)
+    assert len(lines) == 1 and "No space left on device" in lines[0], lines
+    monkeypatch.undo()
+    assert main(cmd + (["--resume"] if where == "tune" else [])) == 0
+
+
 def test_memory_estimate_grows_with_the_square_of_the_size():
     from vistac_learn.train.config import build_model, protocol_cfg
     from vistac_learn.train.memory import check_fits, estimate_bytes
