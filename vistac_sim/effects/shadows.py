@@ -25,6 +25,8 @@ class ShadowsCfg(Config):
                                  help="direction of the fixed key light (no lighting "
                                  "effect)")
     azimuth_deg: float = param(30.0, help="azimuth of the fixed key light")
+    softness: float = param(0.0, ge=0, le=1,
+                            help="m, size of the light's bulb: soft shadow edges (0: hard)")
 
 
 @dataclass(frozen=True)
@@ -45,6 +47,8 @@ class Shadows(ConfiguredEffect):
             el = np.radians(self.cfg.elevation_deg)
             light = Light(float(el), float(np.radians(self.cfg.azimuth_deg)),
                           float(min(1.0, HEADLIGHT[1] / np.sin(el))), HEADLIGHT[0])
+        if self.cfg.softness:
+            light = replace(light, softness=self.cfg.softness)
         return replace(view, light=light, shadows=True)
 
 

@@ -28,7 +28,7 @@ from vistac.dataset.files import (
     write_manifest,
     write_row_groups,
 )
-from vistac.dataset.schema import CONFIGS, IMAGES, PARTIAL, PRESSES
+from vistac.dataset.schema import CONFIGS, IMAGES, MASKS, PARTIAL, PRESSES
 from vistac.errors import UserError
 
 SHARD = ".arrow"
@@ -96,8 +96,8 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
         raise UserError(f"{out}: already holds a complete dataset; choose another --out")
     if partial.is_dir() and not finished_chunks(out):  # stopped before its first shard
         shutil.rmtree(partial)
-        shutil.rmtree(out / IMAGES, ignore_errors=True)
-        shutil.rmtree(out / "recordings", ignore_errors=True)
+        for folder in (IMAGES, MASKS, "recordings"):
+            shutil.rmtree(out / folder, ignore_errors=True)
         resume = False
     if resume:
         if not state_file.exists():
@@ -108,7 +108,7 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
                           if previous.get(k) != run_state.get(k))
             raise UserError(f"{out}: the interrupted run used other settings ({', '.join(diff)}); "
                             "resume with the same options or choose another --out")
-        for folder in (partial / "shards", out / IMAGES, out / "recordings"):
+        for folder in (partial / "shards", out / IMAGES, out / MASKS, out / "recordings"):
             if folder.is_dir():
                 remove_stale_temporaries(folder)
         return finished_chunks(out)

@@ -78,9 +78,22 @@ def compile_scene(obj: SceneObject, cfg: GenerateCfg) -> tuple[mujoco.MjModel, S
     text and parsing it back costs seconds): the full-resolution visual mesh, which does not
     collide, and the convex pieces, which collide and are hidden in renders (group 3).
     """
+    from vistac_sim.render.materials import add_banks, banks_of, planar_texcoords
+
     spec = scene_spec(cfg)
     body = spec.body("object")
-    _add_mesh_geom(spec, body, "object_visual", obj.mesh, (*obj.rgb, 1.0), collide=False, group=0)
+    banks = banks_of(cfg)  # textures only for scenes whose effects ask for them
+    visual = _add_mesh_geom(spec, body, "object_visual", obj.mesh, (*obj.rgb, 1.0),
+                            collide=False, group=0)
+    if banks:
+        add_banks(spec, banks)
+        if "object" in banks:  # a material with a texture, so the mesh keeps its coordinates
+            spec.mesh("object_visual_mesh").usertexcoord = planar_texcoords(
+                obj.mesh.vertices).ravel()
+            visual.material = next(m.name for m in spec.materials if m.name.startswith("object"))
+        if "table" in banks:
+            spec.geom("table").material = next(m.name for m in spec.materials
+                                               if m.name.startswith("table"))
     for i, piece in enumerate(obj.pieces):
         g = _add_mesh_geom(spec, body, f"piece{i}", piece, (0, 0, 0, 0), collide=True,
                            group=OBJECT_GROUP_COLLISION)
