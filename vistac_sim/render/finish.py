@@ -29,22 +29,30 @@ def noise_bank(size: int) -> np.ndarray:
 
 
 def apply_finish(rgb: np.ndarray, finish: Finish) -> np.ndarray:
-    """The frame as the phone's camera would deliver it (uint8, same shape)."""
-    img = rgb.astype(np.float32)
+    """The frame as the phone's camera would deliver it (uint8, same shape).
+
+    Whole-image OpenCV operations on uint8 (saturating, rounding to nearest): the gain as a
+    look-up table per channel, the blurs, then the noise, whose std per pixel comes from a
+    float look-up table of the pixel's value.
+    """
+    out = np.ascontiguousarray(rgb)
     if finish.gain != (1.0, 1.0, 1.0):
-        img *= np.asarray(finish.gain, np.float32)
+        levels = np.arange(256, dtype=np.float32)
+        lut = np.clip(np.rint(levels[:, None] * np.asarray(finish.gain, np.float32)), 0, 255)
+        out = cv2.LUT(out, lut.astype(np.uint8).reshape(256, 1, 3))
     if finish.defocus > 0:
-        img = cv2.GaussianBlur(img, (0, 0), finish.defocus)
+        out = cv2.GaussianBlur(out, (0, 0), finish.defocus)
     length, angle = finish.motion
     if length >= 1.0:
-        img = cv2.filter2D(img, -1, motion_kernel(length, angle))
+        out = cv2.filter2D(out, -1, motion_kernel(length, angle))
     read, shot = finish.noise
     if read > 0 or shot > 0:
-        h, w = img.shape[:2]
+        h, w = out.shape[:2]
         r, c = finish.noise_at
         unit = noise_bank(max(h, w))[r:r + h, c:c + w]
-        img += unit * np.sqrt(read * read + shot * np.clip(img, 0, None))
-    out = np.clip(img + 0.5, 0, 255).astype(np.uint8)  # round half up (values are >= 0)
+        std = np.sqrt(read * read + shot * np.arange(256, dtype=np.float32)).astype(np.float32)
+        sigma = cv2.LUT(out, np.repeat(std[:, None], 3, axis=1).reshape(256, 1, 3))
+        out = cv2.add(out, cv2.multiply(np.ascontiguousarray(unit), sigma), dtype=cv2.CV_8U)
     if finish.jpeg:
         ok, buf = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, finish.jpeg])
         out = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1]

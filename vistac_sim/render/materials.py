@@ -7,8 +7,9 @@ surface in the visual scene (`vistac_sim.render.view_render`), so the model is m
 object and never changed.
 
 The object's mesh has no texture coordinates of its own: it gets a planar projection from
-above (u, v = x, y in metres, object frame), which is what a camera looking down sees of a
-label or grain on the object's top; `Surface.repeat` scales it per configuration.
+above (u, v = x, -y in metres, object frame), which is what a camera looking down sees of a
+label or grain on the object's top; `Surface.repeat` scales it per configuration. It gets flat
+normals (one per face) too: with texture coordinates MuJoCo shades with the normals as given.
 """
 
 from __future__ import annotations
@@ -59,8 +60,11 @@ def add_banks(spec: mujoco.MjSpec, banks: dict[str, dict[str, list[np.ndarray]]]
 
 
 def planar_texcoords(vertices: np.ndarray) -> np.ndarray:
-    """(n, 2) texture coordinates of mesh vertices: their (x, y) in metres, seen from above."""
-    return np.asarray(vertices, np.float32)[:, :2].copy()
+    """(n, 2) texture coordinates of mesh vertices: their (x, -y) in metres, so that a texture
+    reads as an image seen from above (OpenGL's texture rows run bottom-up)."""
+    uv = np.asarray(vertices, np.float32)[:, :2].copy()
+    uv[:, 1] *= -1
+    return uv
 
 
 def texture_ids(model: mujoco.MjModel) -> dict[str, dict[str, list[int]]]:

@@ -63,17 +63,24 @@ def sphere_polygons(view: View, spheres: np.ndarray) -> np.ndarray:
         return centre[:, None, :] + (r * view.px_per_m)[:, None, None] * _RING[None]
     pos, right, up, _ = view.frame()
     w = c - pos
-    dist = np.linalg.norm(w, axis=1)
+    dist = np.sqrt(np.einsum("ij,ij->i", w, w))
     wn = w / dist[:, None]
     # the silhouette circle: centre m, radius rho, in the plane across the ray to the centre
     m = c - (r**2 / dist)[:, None] * wn
     rho = r * np.sqrt(np.maximum(dist**2 - r**2, 0.0)) / dist
-    e1 = np.cross(wn, up)
-    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
-    e2 = np.cross(wn, e1)
+    e1 = _cross(wn, up)
+    e1 /= np.sqrt(np.einsum("ij,ij->i", e1, e1))[:, None]
+    e2 = _cross(wn, e1)
     pts = m[:, None, :] + rho[:, None, None] * (_RING[None, :, :1] * e1[:, None, :]
                                                  + _RING[None, :, 1:] * e2[:, None, :])
     return view.project(pts)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of (n, 3) and (n, 3) or (3,) (cheaper than np.cross here)."""
+    b = np.broadcast_to(b, a.shape)
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
 
 
 def hull(points: np.ndarray) -> np.ndarray:
@@ -99,7 +106,8 @@ def finger_shapes(capsules: np.ndarray, view: View, width: float = 1.0, grow_px:
     if grow_px:
         caps[..., 3] += grow_px / px_per_m_at(view, caps[..., :3])
     if taper >= 1.0:
-        return [hull(sphere_polygons(view, cap)) for cap in caps]
+        polys = sphere_polygons(view, caps.reshape(-1, 4)).reshape(len(caps), -1, 2)
+        return [hull(p) for p in polys]
     pad, shaft = caps
     # the shaft's far end: its end farthest from the pad; the tip: the pad's end farthest from it
     far = shaft[np.argmax(np.linalg.norm(shaft[:, :3] - pad[:, :3].mean(0), axis=1))]

@@ -10,6 +10,7 @@ made with.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -201,6 +202,12 @@ class View:
         return self.focal_px / self.px_per_m
 
     def frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(pos, right, up, forward) of the camera in world coordinates (`_frame`, made once
+        per view; read-only arrays)."""
+        return self._frame
+
+    @functools.cached_property
+    def _frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(pos, right, up, forward) of the camera in world coordinates.
 
         The clean camera looks straight down from (0, 0, 1) with image right = world +x and image
@@ -214,6 +221,8 @@ class View:
         tilt = _rotation(np.array([-np.sin(c.tilt_azimuth), np.cos(c.tilt_azimuth), 0.0]), c.tilt)
         right, up, fwd = tilt @ right, tilt @ up, tilt @ fwd
         pos = np.array([c.center[0], c.center[1], 0.0]) - self.distance * fwd
+        for v in (pos, right, up, fwd):
+            v.setflags(write=False)
         return pos, right, up, fwd
 
     def project(self, points: np.ndarray) -> np.ndarray:

@@ -138,8 +138,9 @@ def _apply_view(scn: mujoco.MjvScene, top: TopView, data: mujoco.MjData, view: V
     """Change the visual scene as `view` asks; returns the table's geom id."""
     model, ids = top.model, top.ids
     table = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "table")
+    banks = top.texture_ids  # empty unless the scene has textures
     obj = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "object_visual") \
-        if view.object_look is not None else -2
+        if "object" in banks else -2
     pos, right, up, fwd = view.frame()
     lift = -OVERLAY_LIFT * fwd  # towards the camera: same pixels, in front of everything
     moves = {}
@@ -169,11 +170,12 @@ def _apply_view(scn: mujoco.MjvScene, top: TopView, data: mujoco.MjData, view: V
             g.castshadow = 0
         elif g.objid == table:
             g.rgba[:3] = view.table_rgb
-            if view.table_look is not None:
-                _dress(g, view.table_look, top.texture_ids.get("table", {}), uniform=True)
+            if "table" in banks:
+                _dress(g, view.table_look, banks["table"], uniform=True)
         elif g.objid == obj:
-            g.rgba[:3] = view.object_look.rgb
-            _dress(g, view.object_look, top.texture_ids.get("object", {}), uniform=False)
+            if view.object_look is not None:
+                g.rgba[:3] = view.object_look.rgb
+            _dress(g, view.object_look, banks["object"], uniform=False)
     half = view.image_size / view.px_per_m / 2
     for cam in scn.camera:  # both eyes at the same place: a mono view
         cam.pos[:], cam.forward[:], cam.up[:] = pos, fwd, up
@@ -191,7 +193,13 @@ def _apply_view(scn: mujoco.MjvScene, top: TopView, data: mujoco.MjData, view: V
 
 
 def _dress(g: mujoco.MjvGeom, look, texture_ids: dict[str, list[int]], uniform: bool) -> None:
-    """A surface's texture, its repeats per metre and its shine on a visual-scene geom."""
+    """A surface's texture, its repeats per metre and its shine on a visual-scene geom (none
+    for no look or a plain one: without its material the geom is not textured)."""
+    if look is None or not look.kind:
+        g.matid = g.texid = -1
+        if look is not None:
+            g.specular, g.shininess = look.specular, look.shininess
+        return
     g.texid = materials.pick(texture_ids, look.kind, look.pick)
     g.texrepeat[:] = (look.repeat, look.repeat)
     g.texuniform = int(uniform)

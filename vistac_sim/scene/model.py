@@ -87,9 +87,13 @@ def compile_scene(obj: SceneObject, cfg: GenerateCfg) -> tuple[mujoco.MjModel, S
                             collide=False, group=0)
     if banks:
         add_banks(spec, banks)
-        if "object" in banks:  # a material with a texture, so the mesh keeps its coordinates
-            spec.mesh("object_visual_mesh").usertexcoord = planar_texcoords(
-                obj.mesh.vertices).ravel()
+        if "object" in banks:  # texture coordinates, flat normals and a textured material
+            mesh = spec.mesh("object_visual_mesh")
+            mesh.usertexcoord = planar_texcoords(obj.mesh.vertices).ravel()
+            # With texture coordinates MuJoCo shades with the vertex normals as given, which
+            # smooth across the rim of a flat top: give each face its own normal instead.
+            mesh.usernormal = np.asarray(obj.mesh.face_normals, np.float32).ravel()
+            mesh.userfacenormal = np.repeat(np.arange(len(obj.mesh.faces), dtype=np.int32), 3)
             visual.material = next(m.name for m in spec.materials if m.name.startswith("object"))
         if "table" in banks:
             spec.geom("table").material = next(m.name for m in spec.materials
