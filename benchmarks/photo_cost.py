@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import shutil
 import statistics
 import subprocess
@@ -86,14 +85,18 @@ def whole_runs(n: int, seed: int, rounds: int) -> dict[str, dict[str, list[float
 
 
 def peak_rss_mib(n: int, seed: int) -> float:
-    """Peak resident set (MiB) of a fresh `vistac generate --preset photo` process."""
+    """Peak resident set (MiB) of a fresh `vistac generate --preset photo --workers 1` process,
+    read by a fresh wrapper process whose only child it is (so no earlier child counts)."""
     with tempfile.TemporaryDirectory() as tmp:
-        before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-        subprocess.run([sys.executable, "-m", "vistac.cli", "generate", "--out", f"{tmp}/d",
-                        "--n", str(n), "--seed", str(seed), "--preset", "photo", "--workers",
-                        "1", "--no-progress"], check=True, capture_output=True)
-        peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    return max(peak, before) / 1024
+        cmd = [sys.executable, "-m", "vistac.cli", "generate", "--out", f"{tmp}/d", "--n",
+               str(n), "--seed", str(seed), "--preset", "photo", "--workers", "1",
+               "--no-progress"]
+        wrapper = ("import resource, subprocess, sys; "
+                   f"subprocess.run({cmd!r}, check=True, capture_output=True); "
+                   "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)")
+        out = subprocess.run([sys.executable, "-c", wrapper], check=True, capture_output=True,
+                             text=True)
+    return int(out.stdout.split()[-1]) / 1024
 
 
 def main() -> None:

@@ -64,7 +64,7 @@ PRESETS: dict[str, dict[str, Any]] = {
         "table": {"rgb_std": 0.08, "texture": 0.0, "kinds": ["wood", "cloth", "paper", "photo"]},
         "lighting": {"elevation_deg": [40.0, 85.0], "intensity": [0.45, 0.75],
                      "ambient": [0.3, 0.5], "specular": 0.3, "temperature_k": [3000.0, 7500.0]},
-        "shadows": {"map_size": 256, "softness": 0.02, "probability": 0.3},
+        "shadows": {"map_size": 256, "softness": 0.02, "probability": 0.2},
         "phone_camera": True,
         "exposure": True,
         "blur": True,

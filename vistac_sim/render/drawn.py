@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 
 from vistac.dataset.schema import MASK_VALUES
-from vistac_sim.render.outlines import finger_shapes, polygons_box
+from vistac_sim.render.outlines import many_finger_shapes, polygons_box
 from vistac_sim.render.view import DrawnStyle, View
 
 SHIFT = 4  # sub-pixel bits of the polygon vertices handed to OpenCV
@@ -24,12 +24,12 @@ def drawn_shapes(capsules: list[np.ndarray], view: View) -> list[tuple[list, lis
     Without an outline the two lists are the same polygons.
     """
     d = view.drawn
-    out = []
-    for caps, width in zip(capsules, d.width, strict=True):
-        fill = finger_shapes(caps, view, width, 0.0, d.taper)
-        outer = finger_shapes(caps, view, width, d.outline / 2, d.taper) if d.outline else fill
-        out.append((outer, fill))
-    return out
+    jobs = [(caps, width, 0.0, d.taper) for caps, width in zip(capsules, d.width, strict=True)]
+    if d.outline:
+        jobs += [(caps, width, d.outline / 2, d.taper) for caps, width, _, _ in jobs]
+    shapes = many_finger_shapes(jobs, view)
+    n = len(capsules)
+    return [(shapes[n + k] if d.outline else shapes[k], shapes[k]) for k in range(n)]
 
 
 def drawn_boxes(shapes: list[tuple[list, list]], size: int) -> np.ndarray:

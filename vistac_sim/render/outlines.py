@@ -23,7 +23,7 @@ from vistac_sim.render.topview import finger_capsules
 from vistac_sim.render.view import View, rotz
 from vistac_sim.scene.ids import SceneIds
 
-SIDES = 32
+SIDES = 24
 _ANGLES = np.linspace(0.0, 2 * np.pi, SIDES, endpoint=False)
 _RING = np.stack([np.cos(_ANGLES), np.sin(_ANGLES)], axis=1) / np.cos(np.pi / SIDES)
 
@@ -101,20 +101,39 @@ def finger_shapes(capsules: np.ndarray, view: View, width: float = 1.0, grow_px:
             farthest from the shaft) to the shaft's far end, whose radius is `taper` times the
             fingertip's.
     """
-    caps = np.array(capsules, float)
-    caps[..., 3] *= width
-    if grow_px:
-        caps[..., 3] += grow_px / px_per_m_at(view, caps[..., :3])
-    if taper >= 1.0:
-        polys = sphere_polygons(view, caps.reshape(-1, 4)).reshape(len(caps), -1, 2)
-        return [hull(p) for p in polys]
-    pad, shaft = caps
-    # the shaft's far end: its end farthest from the pad; the tip: the pad's end farthest from it
-    far = shaft[np.argmax(np.linalg.norm(shaft[:, :3] - pad[:, :3].mean(0), axis=1))]
-    tip = pad[np.argmax(np.linalg.norm(pad[:, :3] - far[:3], axis=1))].copy()
-    end = far.copy()
-    end[3] = tip[3] * taper
-    return [hull(sphere_polygons(view, np.stack([tip, end])))]
+    return many_finger_shapes([(capsules, width, grow_px, taper)], view)[0]
+
+
+def many_finger_shapes(jobs: list[tuple[np.ndarray, float, float, float]],
+                       view: View) -> list[list[np.ndarray]]:
+    """`finger_shapes` of several (capsules, width, grow_px, taper), projected in one batch."""
+    groups: list[np.ndarray] = []  # each: the two spheres whose hull is one polygon
+    counts = []
+    for capsules, width, grow_px, taper in jobs:
+        caps = np.array(capsules, float)
+        caps[..., 3] *= width
+        if grow_px:
+            caps[..., 3] += grow_px / px_per_m_at(view, caps[..., :3])
+        if taper >= 1.0:
+            groups += [caps[0], caps[1]]
+            counts.append(2)
+            continue
+        pad, shaft = caps
+        # the shaft's far end: its end farthest from the pad; the tip: the pad's end farthest
+        # from that
+        far = shaft[np.argmax(np.linalg.norm(shaft[:, :3] - pad[:, :3].mean(0), axis=1))]
+        tip = pad[np.argmax(np.linalg.norm(pad[:, :3] - far[:3], axis=1))]
+        end = far.copy()
+        end[3] = tip[3] * taper
+        groups.append(np.stack([tip, end]))
+        counts.append(1)
+    polys = sphere_polygons(view, np.concatenate(groups)).reshape(len(groups), -1, 2)
+    hulls = [hull(p) for p in polys]
+    out, k = [], 0
+    for n in counts:
+        out.append(hulls[k:k + n])
+        k += n
+    return out
 
 
 _SQUARES: dict[int, np.ndarray] = {}

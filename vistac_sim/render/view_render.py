@@ -38,7 +38,7 @@ from vistac_sim.render.boxes import boxes_from_outlines
 from vistac_sim.render.config import RenderCfg
 from vistac_sim.render.drawn import draw_fingers, drawn_boxes, drawn_shapes, fill_mask
 from vistac_sim.render.finish import apply_finish
-from vistac_sim.render.outlines import finger_shapes, moved_capsules, polygons_box
+from vistac_sim.render.outlines import many_finger_shapes, moved_capsules, polygons_box
 from vistac_sim.render.topview import TopView, finger_capsules
 from vistac_sim.render.view import TableTexture, View, rotz
 from vistac_sim.scene.ids import SceneIds
@@ -257,8 +257,9 @@ def view_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
     circumscribed about them (`vistac_sim.render.outlines`).
     """
     if view.perspective:
-        return np.stack([polygons_box(finger_shapes(caps, view), view.image_size)
-                         for caps in moved_capsules(model, data, ids, view)])
+        shapes = many_finger_shapes([(caps, 1.0, 0.0, 1.0) for caps in
+                                     moved_capsules(model, data, ids, view)], view)
+        return np.stack([polygons_box(polys, view.image_size) for polys in shapes])
     s = view.px_per_m
     caps_px = []
     for k, (f, caps) in enumerate(zip(FINGERS, finger_capsules(model, data, ids), strict=True)):

@@ -17,6 +17,7 @@ import numpy as np
 from vistac.dataset import FINGERS
 from vistac_sim.assets import SCENE_XML
 from vistac_sim.mj import mujoco
+from vistac_sim.render.materials import add_banks, banks_of, planar_texcoords
 from vistac_sim.scene.ids import LATERAL_JOINTS, OBJECT_GROUP_COLLISION, SceneIds
 
 if TYPE_CHECKING:
@@ -78,8 +79,6 @@ def compile_scene(obj: SceneObject, cfg: GenerateCfg) -> tuple[mujoco.MjModel, S
     text and parsing it back costs seconds): the full-resolution visual mesh, which does not
     collide, and the convex pieces, which collide and are hidden in renders (group 3).
     """
-    from vistac_sim.render.materials import add_banks, banks_of, planar_texcoords
-
     spec = scene_spec(cfg)
     body = spec.body("object")
     banks = banks_of(cfg)  # textures only for scenes whose effects ask for them
