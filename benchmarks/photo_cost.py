@@ -1,13 +1,14 @@
 """Cost of `--preset photo` against the clean preset: per configuration, and memory.
 
-1. paired: `make_configuration` of the same configurations under the clean and the photo config,
-   alternating per configuration (load changes on a shared machine hit both alike); CPU time
-   (`time.process_time`) and wall time, after a warm-up pass that builds every scene (and the
-   texture bank) once;
+1. paired: `make_configuration` of the same configurations under the clean and the photo config
+   (and photo without shadows, and without shadows and JPEG), in a rotating order per
+   configuration (load changes on a shared machine hit all alike); CPU time
+   (`time.process_time`, all threads of this process, the renderer's included) and wall time,
+   after a warm-up pass that builds every scene (and the texture bank) once;
 2. whole `generate` runs, one worker in this process, clean / photo / photo --masks,
    round-robin `--rounds` times after a warm-up run of each: median wall and CPU time;
-3. memory: the peak resident set of a fresh `vistac generate --preset photo` process (one
-   worker) at `--n` and at 4 x `--n` configurations (flat: the same peak).
+3. memory: the peak resident set of a fresh `vistac generate` process (one worker), clean and
+   photo, at `--n` and at 4 x `--n` configurations (flat: about the same peak).
 
     .venv/bin/python benchmarks/photo_cost.py --n 40 --rounds 3
 """
@@ -42,8 +43,14 @@ def config(preset: str, n: int, seed: int, masks: bool = False) -> GenerateCfg:
 
 
 def paired(n: int, seed: int, rounds: int) -> dict[str, dict[str, float]]:
-    """Summed CPU and wall seconds of `make_configuration` per preset over n x rounds."""
+    """Summed CPU and wall seconds of `make_configuration` per variant over n x rounds: clean,
+    photo, and photo without its costliest parts (no shadows; no shadows and no JPEG)."""
     cfgs = {p: config(p, n, seed) for p in ("clean", "photo")}
+    cfgs["photo, no shadows"] = config("photo", n, seed)
+    cfgs["photo, no shadows"].effects.shadows = None
+    cfgs["photo, no shadows, no JPEG"] = config("photo", n, seed)
+    cfgs["photo, no shadows, no JPEG"].effects.shadows = None
+    cfgs["photo, no shadows, no JPEG"].effects.jpeg = None
     specs, _ = object_specs(cfgs["clean"], seed)
     scenes = {p: SceneCache(specs, c, size=64) for p, c in cfgs.items()}
     pipes = {p: build_pipeline(c.effects) for p, c in cfgs.items()}
@@ -52,10 +59,11 @@ def paired(n: int, seed: int, rounds: int) -> dict[str, dict[str, float]]:
         for p in cfgs:  # warm-up: every scene and the texture bank built once
             for cid in range(n):
                 make_configuration(cid, seed, scenes[p], cfgs[p], pipes[p])
+        names = list(cfgs)
         for r in range(rounds):
             for cid in range(n):
-                order = ("clean", "photo") if (cid + r) % 2 else ("photo", "clean")
-                for p in order:
+                shift = (cid + r) % len(names)
+                for p in names[shift:] + names[:shift]:  # a rotating order
                     c0, w0 = time.process_time(), time.perf_counter()
                     make_configuration(cid, seed, scenes[p], cfgs[p], pipes[p])
                     total[p]["cpu"] += time.process_time() - c0
@@ -84,12 +92,12 @@ def whole_runs(n: int, seed: int, rounds: int) -> dict[str, dict[str, list[float
     return times
 
 
-def peak_rss_mib(n: int, seed: int) -> float:
-    """Peak resident set (MiB) of a fresh `vistac generate --preset photo --workers 1` process,
+def peak_rss_mib(n: int, seed: int, preset: str = "photo") -> float:
+    """Peak resident set (MiB) of a fresh `vistac generate --preset P --workers 1` process,
     read by a fresh wrapper process whose only child it is (so no earlier child counts)."""
     with tempfile.TemporaryDirectory() as tmp:
         cmd = [sys.executable, "-m", "vistac.cli", "generate", "--out", f"{tmp}/d", "--n",
-               str(n), "--seed", str(seed), "--preset", "photo", "--workers", "1",
+               str(n), "--seed", str(seed), "--preset", preset, "--workers", "1",
                "--no-progress"]
         wrapper = ("import resource, subprocess, sys; "
                    f"subprocess.run({cmd!r}, check=True, capture_output=True); "
@@ -114,7 +122,8 @@ def main() -> None:
     runs = whole_runs(args.n, args.seed, args.rounds)
     res["runs_s"] = runs
     if not args.skip_memory:
-        res["peak_rss_mib"] = {str(n): peak_rss_mib(n, args.seed) for n in (args.n, 4 * args.n)}
+        res["peak_rss_mib"] = {p: {str(n): peak_rss_mib(n, args.seed, p)
+                                   for n in (args.n, 4 * args.n)} for p in ("clean", "photo")}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "photo_cost.json").write_text(json.dumps(res, indent=2) + "\n")
     lines = [f"# photo preset cost (n = {args.n}, 1 worker, {args.rounds} rounds; shared, "
@@ -125,14 +134,19 @@ def main() -> None:
         lines.append(f"| paired make_configuration, {k} ms per configuration | "
                      f"{pm['clean'][k]:.2f} | {pm['photo'][k]:.2f} | "
                      f"{pm['photo'][k] / pm['clean'][k]:.2f} x |")
+        for v in ("photo, no shadows", "photo, no shadows, no JPEG"):
+            lines.append(f"| ... {v}, {k} | | {pm[v][k]:.2f} | "
+                         f"{pm[v][k] / pm['clean'][k]:.2f} x |")
     for k in ("cpu", "wall"):
         med = {v: statistics.median(runs[v][k]) for v in runs}
         lines.append(f"| whole generate run, {k} s (median) | {med['clean']:.2f} | "
                      f"{med['photo']:.2f} (masks: {med['photo --masks']:.2f}) | "
                      f"{med['photo'] / med['clean']:.2f} x |")
     if "peak_rss_mib" in res:
-        peaks = ", ".join(f"n = {n}: {v:.0f} MiB" for n, v in res["peak_rss_mib"].items())
-        lines += ["", f"Peak resident set of `generate --preset photo --workers 1`: {peaks}."]
+        lines.append("")
+        for p, peaks in res["peak_rss_mib"].items():
+            text = ", ".join(f"n = {n}: {v:.0f} MiB" for n, v in peaks.items())
+            lines.append(f"Peak resident set of `generate --preset {p} --workers 1`: {text}.  ")
     text = "\n".join(lines) + "\n"
     (RESULTS / "photo_cost.md").write_text(text)
     print(text)

@@ -20,6 +20,7 @@ from vistac_sim.effects.exposure import Exposure, ExposureCfg
 from vistac_sim.effects.jpeg import Jpeg, JpegCfg
 from vistac_sim.effects.lighting import Lighting, LightingCfg, kelvin_rgb
 from vistac_sim.effects.object_material import ObjectMaterial, ObjectMaterialCfg
+from vistac_sim.effects.overlay_error import OverlayError, OverlayErrorCfg
 from vistac_sim.effects.phone_camera import PhoneCamera, PhoneCameraCfg
 from vistac_sim.effects.presets import resolve
 from vistac_sim.effects.sensor_noise import SensorNoise, SensorNoiseCfg
@@ -208,9 +209,12 @@ def test_phone_camera_fills_the_frame_with_the_working_area():
 def test_boxes_under_the_phone_camera_match_the_rendered_fingers(photo):
     cfg, scenes = photo
     eff = PhoneCamera(PhoneCameraCfg(tilt_deg=5.0, roll_deg=20.0))
+    moved = OverlayError(OverlayErrorCfg(offset_std=0.003, rotation_std_deg=8.0))
     for i, scene in enumerate(scenes):
         for k in range(3):
             view = eff(View.of(cfg.render), np.random.default_rng(10 * i + k))
+            if k == 2:  # rendered fingers moved off the true ones: drawn over the scene
+                view = moved(view, np.random.default_rng(k))
             obj = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_GEOM, "object_visual")
             group = int(scene.model.geom_group[obj])
             scene.model.geom_group[obj] = 3  # a tilted view lets the object hide a sliver
