@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 from vistac.config import Config, param
 from vistac.dataset.schema import FINGER_RGB, TABLE_RGB
@@ -26,3 +27,8 @@ class RenderCfg(Config):
                                  help="folder of your own images (PNG, JPEG, ...), added to the "
                                  "photographs of the object and table textures (needs an "
                                  "effect that uses them, e.g. --preset photo)")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.textures is not None:  # absolute: a manifest names the same folder anywhere
+            object.__setattr__(self, "textures", str(Path(self.textures).expanduser().resolve()))
