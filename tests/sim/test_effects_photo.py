@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 
 from vistac.cli import main
+from vistac.dataset import open_dataset
 from vistac.errors import UserError
 from vistac_sim.effects import EffectsCfg, build_pipeline
 from vistac_sim.effects.blur import Blur, BlurCfg
@@ -349,10 +350,10 @@ def test_photo_keeps_labels_and_writes_masks(tmp_path):
                                  "values": {"table": 0, "object": 1, "index": 2, "thumb": 3}}
     assert manifest["config"]["render"]["masks"] is True
     for name, configs in (("clean", ca), ("photo", cb)):
-        for _, row in configs.iterrows():
-            img = cv2.imread(str(tmp_path / name / "images" / row["image"]))
-            mask = cv2.imread(str(tmp_path / name / "masks" / row["image"]),
-                              cv2.IMREAD_UNCHANGED)
+        dataset = open_dataset(tmp_path / name)
+        for i, row in configs.iterrows():
+            img = cv2.imread(str(dataset.image_path(i)))
+            mask = cv2.imread(str(dataset.mask_path(i)), cv2.IMREAD_UNCHANGED)
             assert mask.shape == img.shape[:2] and mask.dtype == np.uint8
             assert set(np.unique(mask)) <= {0, 1, 2, 3} and (mask == 1).any()
             for j, f in enumerate(FINGERS):
