@@ -75,6 +75,14 @@ def generate(cfg: GenerateCfg, out: str | Path, *, workers: int = 0, resume: boo
     for path in cfg.objects.paths:
         if not Path(path).exists():
             raise UserError(f"--objects {path}: no such file or folder")
+    if cfg.render.textures is not None:
+        from vistac_sim.render.materials import uses_textures
+        from vistac_sim.render.textures import user_textures
+
+        if not uses_textures(cfg):
+            raise UserError(f"--textures {cfg.render.textures}: no effect uses textures (add "
+                            "--preset photo, or a scene with object_material or table kinds)")
+        user_textures(cfg.render.textures)  # a bad folder fails now, not in a worker
     workers = check_workers(workers)
     engine = engine or EngineCfg()
     out = check_out_dir(out)

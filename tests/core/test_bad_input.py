@@ -90,6 +90,8 @@ CASES = [
     Case("gen-scene-rate-zero", G + " --scene {scene_rate}", "recording.rate_hz"),
     Case("gen-scene-fts3-nan", G + " --scene {scene_nan}", "effects.fts3.hysteresis"),
     Case("gen-scene-shadow-map", G + " --scene {scene_shadow}", "effects.shadows.map_size"),
+    Case("gen-textures-missing", G + " --preset photo --textures {missing}", "--textures"),
+    Case("gen-textures-unused", G + " --textures {missing}", "--textures"),
     Case("gen-scene-jitter", G + " --scene {scene_jitter}", "recording.timing_jitter"),
     Case("gen-scene-unknown-key", G + " --scene {scene_unknown}", "physics"),
     Case("gen-unknown-option", G + " --bogus", "--bogus"),

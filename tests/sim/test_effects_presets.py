@@ -29,7 +29,8 @@ def test_effects_config_is_assembled_from_the_registry():
     keys = [r.key for r in registered()]
     assert keys == [f.name for f in dataclasses.fields(EffectsCfg)] == [
         "noise", "fts3", "finger_pull", "placement_error", "overlay_error", "camera_jitter",
-        "lighting", "shadows", "table"]  # the order effects run in within a stage
+        "lighting", "shadows", "table", "object_material", "phone_camera", "exposure", "blur",
+        "sensor_noise", "jpeg", "drawn_overlay"]  # the order effects run in within a stage
     assert EffectsCfg().fts3 is None and EffectsCfg(fts3=Fts3Cfg()).fts3 == Fts3Cfg()
     with pytest.raises(UserError, match="noise: must be >= 0"):
         EffectsCfg(noise=-0.1)
@@ -38,7 +39,7 @@ def test_effects_config_is_assembled_from_the_registry():
 
 
 def test_presets_parse_and_build():
-    assert set(PRESETS) == {"clean", "lab", "harsh"}
+    assert set(PRESETS) == {"clean", "lab", "harsh", "photo"}
     clean, _ = resolve("clean")
     assert clean == EffectsCfg() and _names(clean) == set()
     assert _names(resolve("clean", noise=0.05)[0]) == {"force_noise"}
@@ -139,7 +140,7 @@ def _forbid(monkeypatch, classes) -> None:
 
 
 def test_disabled_effects_are_never_constructed_nor_called(tmp_path, monkeypatch):
-    assert len(registered()) == 9  # every effect module is imported (and registered)
+    assert len(registered()) == 16  # every effect module is imported (and registered)
     forbidden = [c for c in _all_effect_classes() if c is not ForceNoise]
     assert len(forbidden) >= 12
     _forbid(monkeypatch, forbidden)

@@ -23,6 +23,7 @@ from vistac.dataset.schema import (
     IMAGES,
     LABEL_COLUMNS,
     MANIFEST,
+    MASKS,
     PARTIAL,
     PRESSES,
     SPLITS,
@@ -83,6 +84,10 @@ class DatasetTables:
     def image_path(self, row: int) -> Path:
         """Path of a configuration's image."""
         return self.root / IMAGES / str(self.configs["image"].iat[row])
+
+    def mask_path(self, row: int) -> Path:
+        """Path of a configuration's mask (`--masks`; named as its image), which may not exist."""
+        return self.root / MASKS / str(self.configs["image"].iat[row])
 
     def has_boxes(self, finger: str) -> bool:
         """Whether the finger's bounding-box columns exist and are all finite."""

@@ -15,6 +15,13 @@ from vistac_sim.effects import (  # noqa: F401, I001  (each module registers its
     lighting,
     shadows,
     table,
+    object_material,
+    phone_camera,
+    exposure,
+    blur,
+    sensor_noise,
+    jpeg,
+    drawn_overlay,
 )
 from vistac_sim.effects.registry import Effect, Pipeline, build_pipeline, effects_config
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
-from vistac_sim.render.view import CameraPose, View
+from vistac_sim.render.view import View
 
 
 @dataclass
@@ -40,9 +40,10 @@ class CameraJitter(ConfiguredEffect):
         tilt_xy = np.radians(rng.normal(0.0, c.tilt_std_deg, 2))  # per horizontal axis
         roll = float(np.radians(rng.normal(0.0, c.roll_std_deg)))
         cx, cy = view.camera.center
-        camera = CameraPose((cx + float(shift[0]), cy + float(shift[1])),
-                            view.camera.scale * scale, float(np.hypot(*tilt_xy)),
-                            float(np.arctan2(tilt_xy[1], tilt_xy[0])), view.camera.roll + roll)
+        camera = replace(view.camera, center=(cx + float(shift[0]), cy + float(shift[1])),
+                         scale=view.camera.scale * scale, tilt=float(np.hypot(*tilt_xy)),
+                         tilt_azimuth=float(np.arctan2(tilt_xy[1], tilt_xy[0])),
+                         roll=view.camera.roll + roll)
         return replace(view, camera=camera)
 
 

@@ -54,6 +54,23 @@ PRESETS: dict[str, dict[str, Any]] = {
         "shadows": True,
         "table": True,
     }},
+    # appearance only, like the study's smartphone photographs: textured objects on a textured
+    # table, a coloured key light with soft shadows, a slightly tilted perspective phone camera
+    # with its exposure, white balance, blur, noise and JPEG, and fingers drawn by hand. Nothing
+    # label-side: the same seed gives the same presses and forces as `clean`.
+    "photo": {"effects": {
+        "object_material": True,
+        "table": {"rgb_std": 0.08, "texture": 0.0, "kinds": ["wood", "cloth", "paper", "photo"]},
+        "lighting": {"elevation_deg": [40.0, 85.0], "intensity": [0.45, 0.75],
+                     "ambient": [0.3, 0.5], "specular": 0.3, "temperature_k": [3000.0, 7500.0]},
+        "shadows": {"map_size": 256, "softness": 0.02, "probability": 0.2},
+        "phone_camera": True,
+        "exposure": True,
+        "blur": True,
+        "sensor_noise": {"read": [0.5, 2.0], "shot": [0.0, 0.06]},
+        "jpeg": True,
+        "drawn_overlay": True,
+    }},
 }
 SCENE_SUFFIXES = (".yaml", ".yml", ".toml")
 MAX_SCENE_BYTES = 1 << 20

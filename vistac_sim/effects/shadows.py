@@ -25,6 +25,11 @@ class ShadowsCfg(Config):
                                  help="direction of the fixed key light (no lighting "
                                  "effect)")
     azimuth_deg: float = param(30.0, help="azimuth of the fixed key light")
+    softness: float = param(0.0, ge=0, le=1,
+                            help="m, size of the light's bulb: soft shadow edges (0: hard)")
+    probability: float = param(1.0, ge=0, le=1,
+                               help="share of the configurations with shadows (the shadow "
+                               "pass is the costliest part of a render)")
 
 
 @dataclass(frozen=True)
@@ -45,7 +50,10 @@ class Shadows(ConfiguredEffect):
             el = np.radians(self.cfg.elevation_deg)
             light = Light(float(el), float(np.radians(self.cfg.azimuth_deg)),
                           float(min(1.0, HEADLIGHT[1] / np.sin(el))), HEADLIGHT[0])
-        return replace(view, light=light, shadows=True)
+        if self.cfg.softness:
+            light = replace(light, softness=self.cfg.softness)
+        cast = self.cfg.probability >= 1.0 or rng.random() < self.cfg.probability
+        return replace(view, light=light, shadows=bool(cast))
 
 
 def shadow_map_size(effects: Any) -> int:

@@ -24,7 +24,8 @@ from vistac_sim.generate.config import GenerateCfg
 # Config fields set by options, in the order `--help` lists them (between the others below).
 RUN_OPTIONS = ("n",)
 DRAW_OPTIONS = ("repeats", "seed")
-SCENE_OPTIONS = ("physics.friction", "render.image_size", "objects.paths", "objects.families",
+SCENE_OPTIONS = ("physics.friction", "render.image_size", "render.masks", "render.textures",
+                 "objects.paths", "objects.families",
                  "objects.n_objects", "objects.footprint", "grasp.approach_spread_deg", "split.by",
                  "split.fractions", "chunk_size", "objects.strict")
 OPTIONS = RUN_OPTIONS + DRAW_OPTIONS + SCENE_OPTIONS
@@ -46,8 +47,9 @@ def add_command(sub: argparse._SubParsersAction) -> None:
                    "scene file's effects.noise, else 0)")
     p.add_argument("--preset", choices=tuple(PRESETS), default=None,
                    help="named set of effects: clean (nothing but --noise), lab (what the "
-                   "reference study's set-up suffered), harsh (more); default: the scene "
-                   "file's preset, else clean")
+                   "reference study's set-up suffered), harsh (more), photo (appearance only: "
+                   "textures, light, phone camera, hand-drawn fingers; labels as clean); "
+                   "default: the scene file's preset, else clean")
     p.add_argument("--scene", metavar="FILE", default=None,
                    help="YAML or TOML file switching effects on/off with parameters, merged "
                    "over the preset")
@@ -96,12 +98,12 @@ def drop_unstarted_run(out: Path, existed: bool) -> None:
     """After a failed run: remove what it made if it committed no shard (nothing to resume)."""
     import shutil
 
-    from vistac.dataset.schema import IMAGES, MANIFEST, PARTIAL
+    from vistac.dataset.schema import IMAGES, MANIFEST, MASKS, PARTIAL
     from vistac_sim.generate.shards import finished_chunks
 
     if (out / MANIFEST).exists() or not (out / PARTIAL).is_dir() or finished_chunks(out):
         return
-    for name in (PARTIAL, IMAGES, "recordings"):
+    for name in (PARTIAL, IMAGES, MASKS, "recordings"):
         shutil.rmtree(out / name, ignore_errors=True)
     if not existed and out.is_dir() and not any(out.iterdir()):
         out.rmdir()

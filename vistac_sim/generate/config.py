@@ -90,7 +90,7 @@ class GenerateCfg(Config):
     def from_preset(cls, preset: str | None = None, *, scene: str | Path | None = None,
                     noise: float | None = None, recordings: bool = False,
                     **fields: Any) -> GenerateCfg:
-        """A complete config from a named effect preset (``clean``, ``lab``, ``harsh``).
+        """A complete config from a named effect preset (``clean``, ``photo``, ``lab``, ``harsh``).
 
         Args:
             preset: The preset; None takes the scene file's ``preset``, else ``clean``.

@@ -26,7 +26,7 @@ from vistac_sim.recording.layout import recording_csv
 from vistac_sim.recording.session import simulate_session
 from vistac_sim.render.png import encode_png
 from vistac_sim.render.topview import finger_boxes, px_per_m
-from vistac_sim.render.view_render import render_with_effects
+from vistac_sim.render.view_render import render_mask, render_with_effects
 from vistac_sim.scene.grasp import Grasp
 
 STREAMS = ("grasp", "scene_effects", "force_effects", "image_effects", "session",
@@ -43,6 +43,7 @@ class Configuration:
     presses: list[dict]
     png: bytes
     recording: bytes | None = None  # RH8D/FTS-3 CSV of the session (only with --recordings)
+    mask: bytes | None = None  # label PNG of the image (only with --masks)
 
 
 class ConfigStreams:
@@ -93,12 +94,16 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     else:
         raise RuntimeError(f"configuration {config_id}: no object gave a valid grasp "
                            f"({json.dumps(failed)})")
+    mask = None
     if pipeline.image:  # the image, its boxes and camera columns follow the sampled view
-        rgb, boxes, view_cols = render_with_effects(scene.view, scene.press.data, pipeline,
-                                                    cfg.render, rng["image_effects"])
+        rgb, boxes, view_cols, mask = render_with_effects(
+            scene.view, scene.press.data, pipeline, cfg.render, rng["image_effects"],
+            masks=cfg.render.masks)
     else:
         boxes = finger_boxes(scene.model, scene.press.data, scene.ids, cfg.render)
         rgb, view_cols = scene.view.render(scene.press.data), {}
+        if cfg.render.masks:
+            mask = render_mask(scene.view, scene.press.data)
     png = encode_png(rgb)
     clean = res.force_sensor
     fallbacks = 0
@@ -130,6 +135,7 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
         presses=press_rows(config_id, forces, labels),
         png=png,
         recording=recording,
+        mask=encode_png(mask) if mask is not None else None,
     )
 
 

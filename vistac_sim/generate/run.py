@@ -24,6 +24,7 @@ import numpy as np
 from tqdm import tqdm
 
 from vistac.dataset import MANIFEST, files
+from vistac.dataset.schema import MASK_VALUES, MASKS
 from vistac.engine import EngineCfg, preflight
 from vistac.folder_lock import hold
 from vistac_sim.effects import build_pipeline
@@ -201,6 +202,7 @@ def _generate(cfg: GenerateCfg, out: Path, workers: int, resume: bool, progress:
         "render": {"image_size": cfg.render.image_size, "view_extent_m": cfg.render.view_extent,
                    "px_per_m": cfg.render.image_size / cfg.render.view_extent,
                    "camera_xy": [0.0, 0.0]},
+        "masks": {"folder": MASKS, "values": MASK_VALUES} if cfg.render.masks else None,
         "workers": workers,
         "engine": engine.engine,
         "resumed": bool(resume),

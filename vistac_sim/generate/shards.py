@@ -27,7 +27,7 @@ from vistac.dataset.files import (
     write_manifest,
     write_row_groups,
 )
-from vistac.dataset.schema import CONFIGS, IMAGES, PARTIAL, PRESSES
+from vistac.dataset.schema import CONFIGS, IMAGES, MASKS, PARTIAL, PRESSES
 from vistac.errors import UserError
 from vistac_sim.generate.verify import damaged_files, read_run_state
 from vistac_sim.recording.layout import recording_name
@@ -114,7 +114,7 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
                           if previous.get(k) != run_state.get(k))
             raise UserError(f"{out}: the interrupted run used other settings ({', '.join(diff)}); "
                             "resume with the same options or choose another --out")
-        for folder in (partial / "shards", out / IMAGES, out / "recordings"):
+        for folder in (partial / "shards", out / IMAGES, out / MASKS, out / "recordings"):
             if folder.is_dir():
                 remove_stale_temporaries(folder)
         return checked_chunks(out, bool(run_state["config"]["recording"]["write"]))
@@ -130,10 +130,10 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
 
 
 def _discard_run(out: Path) -> None:
-    """Remove what an interrupted run made (its state, images and recordings)."""
+    """Remove what an interrupted run made (its state, images, masks and recordings)."""
     shutil.rmtree(out / PARTIAL)
-    shutil.rmtree(out / IMAGES, ignore_errors=True)
-    shutil.rmtree(out / "recordings", ignore_errors=True)
+    for folder in (IMAGES, MASKS, "recordings"):
+        shutil.rmtree(out / folder, ignore_errors=True)
 
 
 def _state_damaged(state_file: Path) -> bool:

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from vistac.dataset import files
-from vistac.dataset.schema import IMAGES
+from vistac.dataset.schema import IMAGES, MASKS
 from vistac.errors import UserError
 from vistac_sim.effects import build_pipeline
 from vistac_sim.effects.registry import Pipeline
@@ -71,8 +71,12 @@ def commit_chunk(out: Path, chunk_index: int, made: list[Configuration]) -> int:
     """Write a made chunk's images (and recordings), then commit its shard; returns its size."""
     if any(c.recording is not None for c in made):
         (out / "recordings").mkdir(exist_ok=True)
+    if any(c.mask is not None for c in made):
+        (out / MASKS).mkdir(exist_ok=True)
     for c in made:
         _write_image(out / IMAGES / c.row["image"], c.png)
+        if c.mask is not None:
+            _write_image(out / MASKS / c.row["image"], c.mask)
         if c.recording is not None:
             cid = c.row["config_id"]
             files.atomic_write_bytes(out / "recordings" / recording_name(cid), c.recording)

@@ -12,6 +12,7 @@ from vistac.dataset import FINGERS
 from vistac_sim.mj import gl_context, mujoco
 from vistac_sim.render.boxes import boxes_from_outlines
 from vistac_sim.render.config import RenderCfg
+from vistac_sim.render.materials import texture_ids
 from vistac_sim.scene.ids import OBJECT_GROUP_COLLISION, SceneIds
 
 
@@ -25,6 +26,7 @@ class TopView:
         self.option = mujoco.MjvOption()
         self.option.geomgroup[OBJECT_GROUP_COLLISION] = 0
         self.option.sitegroup[:] = 0
+        self.texture_ids = texture_ids(model)  # bank -> kind -> ids (empty: no textures)
 
     def render(self, data: mujoco.MjData, segmentation: bool = False) -> np.ndarray:
         """RGB image (H, W, 3) uint8 of the current state (or geom-id segmentation)."""

@@ -10,6 +10,7 @@ made with.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -32,6 +33,9 @@ class CameraPose:
         tilt: Angle of the view axis off vertical, rad.
         tilt_azimuth: Direction (from world +x towards +y) the view axis leans to, rad.
         roll: Rotation of the camera about its view axis, rad (counter-clockwise seen from above).
+        fovy: Vertical field of view of a perspective camera, rad; 0 is the orthographic view.
+            A perspective camera stands as high above the table as makes the working area
+            (the clean view's extent over `scale`) fill the frame at the table plane.
     """
 
     center: tuple[float, float] = (0.0, 0.0)
@@ -39,6 +43,7 @@ class CameraPose:
     tilt: float = 0.0
     tilt_azimuth: float = 0.0
     roll: float = 0.0
+    fovy: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -50,6 +55,8 @@ class Light:
     diffuse: float
     ambient: float
     specular: float = 0.0
+    rgb: tuple[float, float, float] = (1.0, 1.0, 1.0)  # colour of the diffuse/specular light
+    softness: float = 0.0  # soft shadow edges (MuJoCo's light `bulbradius`, m)
 
     @property
     def direction(self) -> np.ndarray:
@@ -70,6 +77,70 @@ class TableTexture:
 
 
 @dataclass(frozen=True)
+class Surface:
+    """The look of a surface (the object or the table): a texture of the bank, a tint, shine.
+
+    Attributes:
+        kind: Texture kind of the bank (`vistac_sim.render.textures`), "" for none.
+        pick: Which texture of that kind, in [0, 1) (scaled to the kind's number of textures).
+        rgb: Tint in [0, 1] (the texture is multiplied by it; the colour without a texture).
+        repeat: Texture repeats per metre.
+        specular, shininess: MuJoCo's material shine, in [0, 1].
+    """
+
+    kind: str
+    pick: float
+    rgb: tuple[float, float, float]
+    repeat: float = 10.0
+    specular: float = 0.5
+    shininess: float = 0.5
+
+
+@dataclass(frozen=True)
+class Finish:
+    """Image-space camera effects on the rendered frame, applied in this order.
+
+    Attributes:
+        gain: Exposure and white balance: per-channel gain (R, G, B).
+        defocus: Gaussian blur sigma, px (0: sharp).
+        motion: (length px, direction rad) of a linear motion blur (length 0: none).
+        noise: (read std, shot factor) of the sensor noise in grey levels: the std of a pixel
+            of value I is sqrt(read^2 + shot * I).
+        noise_at: (row, column) offset into the process's fixed bank of unit normals.
+        jpeg: JPEG quality the frame is encoded and decoded at (0: none).
+    """
+
+    gain: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    defocus: float = 0.0
+    motion: tuple[float, float] = (0.0, 0.0)
+    noise: tuple[float, float] = (0.0, 0.0)
+    noise_at: tuple[int, int] = (0, 0)
+    jpeg: int = 0
+
+
+@dataclass(frozen=True)
+class DrawnStyle:
+    """How a person draws the fingers into the photograph (in 2D, over the finished frame).
+
+    Attributes:
+        rgb: Per finger (index, thumb), fill colour in [0, 1].
+        width: Per finger, the drawn width relative to the real finger's.
+        outline: Outline thickness, px (0: none).
+        outline_rgb: Outline colour in [0, 1].
+        antialias: Anti-aliased edges, or hard ones.
+        taper: Width of the drawn shaft's far end relative to the fingertip (1: capsules, as
+            the finger is; < 1: one tapered outline from the tip to the shaft's end).
+    """
+
+    rgb: tuple[tuple[float, float, float], tuple[float, float, float]]
+    width: tuple[float, float] = (1.0, 1.0)
+    outline: float = 0.0
+    outline_rgb: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    antialias: bool = True
+    taper: float = 1.0
+
+
+@dataclass(frozen=True)
 class View:
     """The render request of one configuration: the sampled parameters of every image effect.
 
@@ -83,6 +154,11 @@ class View:
         light: The key light, or None for the scene's headlight.
         shadows: Whether the key light casts shadows.
         texture: The table's brightness pattern, or None.
+        object_look: The object's texture, tint and shine, or None (its plain colour).
+        table_look: The table's texture (its colour stays `table_rgb`), or None.
+        finish: Image-space camera effects, or None.
+        drawn: The fingers drawn by hand in 2D over the finished frame (the rendered fingers
+            are hidden), or None (the rendered fingers).
     """
 
     image_size: int
@@ -93,6 +169,10 @@ class View:
     light: Light | None = None
     shadows: bool = False
     texture: TableTexture | None = None
+    object_look: Surface | None = None
+    table_look: Surface | None = None
+    finish: Finish | None = None
+    drawn: DrawnStyle | None = None
 
     @classmethod
     def of(cls, cfg: RenderCfg) -> View:
@@ -104,26 +184,56 @@ class View:
         """Pixels per metre of this view."""
         return self.image_size / self.view_extent * self.camera.scale
 
+    @property
+    def perspective(self) -> bool:
+        """True for a perspective camera (`CameraPose.fovy` > 0)."""
+        return self.camera.fovy > 0
+
+    @property
+    def focal_px(self) -> float:
+        """Focal length in pixels of a perspective camera."""
+        return self.image_size / 2 / np.tan(self.camera.fovy / 2)
+
+    @property
+    def distance(self) -> float:
+        """The camera's distance from the table point at the image centre, m."""
+        if not self.perspective:
+            return CAMERA_DISTANCE
+        return self.focal_px / self.px_per_m
+
     def frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(pos, right, up, forward) of the camera in world coordinates (`_frame`, made once
+        per view; read-only arrays)."""
+        return self._frame
+
+    @functools.cached_property
+    def _frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """(pos, right, up, forward) of the camera in world coordinates.
 
         The clean camera looks straight down from (0, 0, 1) with image right = world +x and image
         up = world +y. Roll turns (right, up) about the vertical, then the tilt turns the whole
-        frame about the horizontal axis that leans the view axis towards `tilt_azimuth`.
+        frame about the horizontal axis that leans the view axis towards `tilt_azimuth`. A
+        perspective camera stands at `distance` instead.
         """
         c = self.camera
         cr, sr = np.cos(c.roll), np.sin(c.roll)
         right, up, fwd = np.array([cr, sr, 0.0]), np.array([-sr, cr, 0.0]), np.array([0, 0, -1.0])
         tilt = _rotation(np.array([-np.sin(c.tilt_azimuth), np.cos(c.tilt_azimuth), 0.0]), c.tilt)
         right, up, fwd = tilt @ right, tilt @ up, tilt @ fwd
-        pos = np.array([c.center[0], c.center[1], 0.0]) - CAMERA_DISTANCE * fwd
+        pos = np.array([c.center[0], c.center[1], 0.0]) - self.distance * fwd
+        for v in (pos, right, up, fwd):
+            v.setflags(write=False)
         return pos, right, up, fwd
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """Continuous pixel coordinates (u right, v down) of world points (..., 3)."""
-        pos, right, up, _ = self.frame()
+        pos, right, up, fwd = self.frame()
         d = np.asarray(points, float) - pos
-        s, half = self.px_per_m, self.image_size / 2
+        half = self.image_size / 2
+        if self.perspective:
+            s = self.focal_px / (d @ fwd)
+        else:
+            s = self.px_per_m
         return np.stack([half + d @ right * s, half - d @ up * s], axis=-1)
 
     def columns(self) -> dict:
@@ -144,6 +254,35 @@ class View:
                 "shadows": bool(self.shadows)}
         row |= {f"table_{ch}": float(v) for ch, v in zip("rgb", self.table_rgb, strict=True)}
         row["table_texture"] = float(self.texture.strength) if self.texture else 0.0
+        return row | self._photo_columns()
+
+    def _photo_columns(self) -> dict:
+        """Columns of the appearance parameters that are set (none for a view without them)."""
+        row: dict = {}
+        if self.perspective:
+            row["camera_fovy_deg"] = float(np.degrees(self.camera.fovy))
+            row["camera_height"] = float(self.distance)
+        if self.light is not None and self.light.rgb != (1.0, 1.0, 1.0):
+            row |= {f"light_{ch}": float(v) for ch, v in zip("rgb", self.light.rgb, strict=True)}
+        for name, look in (("object", self.object_look), ("table", self.table_look)):
+            if look is not None:
+                row |= {f"{name}_texture_kind": look.kind,
+                        f"{name}_texture_pick": float(look.pick)}
+                row |= {f"{name}_look_{ch}": float(v) for ch, v in zip("rgb", look.rgb,
+                                                                         strict=True)}
+        if self.finish is not None:
+            f = self.finish
+            row |= {f"gain_{ch}": float(v) for ch, v in zip("rgb", f.gain, strict=True)}
+            row |= {"defocus_px": float(f.defocus), "motion_blur_px": float(f.motion[0]),
+                    "noise_read": float(f.noise[0]), "noise_shot": float(f.noise[1]),
+                    "jpeg_quality": int(f.jpeg)}
+        if self.drawn is not None:
+            d = self.drawn
+            for f, rgb, w in zip(FINGERS, d.rgb, d.width, strict=True):
+                row |= {f"drawn_{f}_{ch}": float(v) for ch, v in zip("rgb", rgb, strict=True)}
+                row[f"drawn_{f}_width"] = float(w)
+            row |= {"drawn_outline_px": float(d.outline), "drawn_antialias": bool(d.antialias),
+                    "drawn_taper": float(d.taper)}
         return row
 
 

@@ -13,7 +13,12 @@ needs restoring:
 - shadows: that key light casts shadows (needs a shadow map, created with the renderer only for
   scenes that ask for shadows: `vistac_sim.effects.shadows.shadow_map_size`);
 - table: the table's colour, and a brightness pattern multiplied onto the table's pixels (found
-  with a segmentation render of the same scene).
+  with a segmentation render of the same scene), or a texture of the table bank;
+- object material: the object's texture (of the object bank), tint and shine;
+- phone camera: a perspective GL camera (the drawn fingers are then moved towards the camera
+  along the rays through it, and shrunk alike, which again leaves their pixels in place);
+- after the render, in image space: the camera's finish (`vistac_sim.render.finish`) and the
+  fingers drawn by hand (`vistac_sim.render.drawn`; the rendered fingers are then hidden).
 
 Without image effects `vistac_sim.generate.configuration` keeps the plain render path.
 """
@@ -26,9 +31,14 @@ import cv2
 import numpy as np
 
 from vistac.dataset import FINGERS
+from vistac.dataset.schema import MASK_VALUES
 from vistac_sim.mj import mujoco
+from vistac_sim.render import materials
 from vistac_sim.render.boxes import boxes_from_outlines
 from vistac_sim.render.config import RenderCfg
+from vistac_sim.render.drawn import draw_fingers, drawn_boxes, drawn_shapes, fill_mask
+from vistac_sim.render.finish import apply_finish
+from vistac_sim.render.outlines import many_finger_shapes, moved_capsules, polygons_box
 from vistac_sim.render.topview import TopView, finger_capsules
 from vistac_sim.render.view import TableTexture, View, rotz
 from vistac_sim.scene.ids import SceneIds
@@ -37,25 +47,35 @@ if TYPE_CHECKING:
     from vistac_sim.effects.registry import Pipeline
 
 OVERLAY_LIFT = 0.2  # m a drawn finger is moved towards the camera (in front of any object)
+PERSPECTIVE_LIFT = 0.5  # a drawn finger's distance from a perspective camera is scaled by this
+HIDDEN_Z = -10.0  # m, where a hidden geom goes (under the opaque table)
 GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)  # a plain int: comparing arrays with the enum is slow
 
 
 def render_with_effects(top: TopView, data: mujoco.MjData, pipeline: Pipeline, cfg: RenderCfg,
-                        rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, dict]:
+                        rng: np.random.Generator, masks: bool = False
+                        ) -> tuple[np.ndarray, np.ndarray, dict, np.ndarray | None]:
     """Run the image effects on the clean view, then render it.
 
     Returns:
         (RGB image, (2, 4) boxes of the drawn fingers as the image shows them, the view's
-        configuration-table columns).
+        configuration-table columns, the mask (`render_mask`) or None).
     """
     view = pipeline.apply_image(View.of(cfg), rng)
-    return (render_view(top, data, view), view_boxes(top.model, data, top.ids, view),
-            view.columns())
+    shapes = drawn_shapes(moved_capsules(top.model, data, top.ids, view), view) \
+        if view.drawn is not None else None
+    rgb = render_view(top, data, view, shapes=shapes)
+    boxes = drawn_boxes(shapes, view.image_size) if shapes is not None \
+        else view_boxes(top.model, data, top.ids, view)
+    mask = render_mask(top, data, view, shapes) if masks else None
+    return rgb, boxes, view.columns(), mask
 
 
-def render_view(top: TopView, data: mujoco.MjData, view: View,
-                segmentation: bool = False) -> np.ndarray:
+def render_view(top: TopView, data: mujoco.MjData, view: View, segmentation: bool = False,
+                shapes: list | None = None) -> np.ndarray:
     """RGB image (H, W, 3) uint8 of the current state as `view` sees it (or the segmentation).
+
+    `shapes` are the drawn fingers' polygons when the caller has them (`drawn_shapes`).
 
     Raises:
         ValueError: the view asks for shadows from a renderer made without a shadow map.
@@ -64,7 +84,7 @@ def render_view(top: TopView, data: mujoco.MjData, view: View,
         raise ValueError("shadows need a renderer made with a shadow map (shadow_map_size)")
     r = top.renderer
     r.update_scene(data, camera=top.ids.camera, scene_option=top.option)
-    table = _apply_view(r.scene, top.model, data, top.ids, view)
+    table = _apply_view(r.scene, top, data, view)
     if segmentation:
         return _segmentation(r)
     rgb = r.render()
@@ -74,7 +94,36 @@ def render_view(top: TopView, data: mujoco.MjData, view: View,
         gain = texture_pattern(view.texture, view.image_size, view.px_per_m)
         shaded = np.clip(rgb * np.where(mask, gain, 1.0)[..., None], 0, 255)
         rgb = np.rint(shaded).astype(np.uint8)
+    if view.finish is not None:
+        rgb = apply_finish(rgb, view.finish)
+    if view.drawn is not None:
+        if shapes is None:
+            shapes = drawn_shapes(moved_capsules(top.model, data, top.ids, view), view)
+        rgb = draw_fingers(rgb, shapes, view.drawn)
     return rgb
+
+
+def render_mask(top: TopView, data: mujoco.MjData, view: View | None = None,
+                shapes: list | None = None) -> np.ndarray:
+    """(H, W) uint8 labels of what the image shows: 0 table (and anything else), 1 object,
+    2 index finger, 3 thumb (the drawn finger where the view draws them, else the rendered
+    one). `view` None is the plain top view."""
+    if view is None:
+        seg = top.render(data, segmentation=True)
+    else:
+        seg = render_view(top, data, view, segmentation=True)
+    ids = top.ids
+    mask = np.zeros(seg.shape[:2], np.uint8)
+    geom = seg[..., 1] == GEOM
+    obj = mujoco.mj_name2id(top.model, mujoco.mjtObj.mjOBJ_GEOM, "object_visual")
+    mask[geom & (seg[..., 0] == obj)] = MASK_VALUES["object"]
+    if view is not None and view.drawn is not None:
+        if shapes is None:
+            shapes = drawn_shapes(moved_capsules(top.model, data, ids, view), view)
+        return fill_mask(mask, shapes)
+    for f in FINGERS:
+        mask[geom & np.isin(seg[..., 0], [ids.pad[f], ids.shaft[f]])] = MASK_VALUES[f]
+    return mask
 
 
 def _segmentation(renderer: mujoco.Renderer) -> np.ndarray:
@@ -85,36 +134,76 @@ def _segmentation(renderer: mujoco.Renderer) -> np.ndarray:
         renderer.disable_segmentation_rendering()
 
 
-def _apply_view(scn: mujoco.MjvScene, model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
-                view: View) -> int:
+def _apply_view(scn: mujoco.MjvScene, top: TopView, data: mujoco.MjData, view: View) -> int:
     """Change the visual scene as `view` asks; returns the table's geom id."""
+    model, ids = top.model, top.ids
     table = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "table")
+    banks = top.texture_ids  # empty unless the scene has textures
+    obj = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "object_visual") \
+        if "object" in banks else -2
     pos, right, up, fwd = view.frame()
     lift = -OVERLAY_LIFT * fwd  # towards the camera: same pixels, in front of everything
     moves = {}
-    for f, (dx, dy, da) in zip(FINGERS, view.overlay, strict=True):
-        if dx or dy or da:
-            pivot = data.site_xpos[ids.site[f]].copy()
-            for g in (ids.pad[f], ids.shaft[f]):
-                moves[g] = (pivot, rotz(da), np.array([dx, dy, 0.0]))
+    fingers = {g for f in FINGERS for g in (ids.pad[f], ids.shaft[f])}
+    if view.drawn is None:
+        for f, (dx, dy, da) in zip(FINGERS, view.overlay, strict=True):
+            if dx or dy or da:
+                pivot = data.site_xpos[ids.site[f]].copy()
+                for g in (ids.pad[f], ids.shaft[f]):
+                    moves[g] = (pivot, rotz(da), np.array([dx, dy, 0.0]))
     for i in range(scn.ngeom):
         g = scn.geoms[i]
         if g.objtype != GEOM:
             continue
         if g.objid in moves:  # a drawn finger: painted over the scene, without a shadow
             pivot, rot, shift = moves[g.objid]
-            g.pos[:] = pivot + rot @ (np.asarray(g.pos, float) - pivot) + shift + lift
+            moved = pivot + rot @ (np.asarray(g.pos, float) - pivot) + shift
+            if view.perspective:  # along the rays through the camera, shrunk alike
+                g.pos[:] = pos + PERSPECTIVE_LIFT * (moved - pos)
+                g.size[:] = PERSPECTIVE_LIFT * np.asarray(g.size, float)
+            else:
+                g.pos[:] = moved + lift
             g.mat[:] = rot @ np.asarray(g.mat, float)
+            g.castshadow = 0
+        elif view.drawn is not None and g.objid in fingers:  # drawn in 2D later: hide
+            g.pos[2] = HIDDEN_Z
             g.castshadow = 0
         elif g.objid == table:
             g.rgba[:3] = view.table_rgb
+            if "table" in banks:
+                _dress(g, view.table_look, banks["table"], uniform=True)
+        elif g.objid == obj:
+            if view.object_look is not None:
+                g.rgba[:3] = view.object_look.rgb
+            _dress(g, view.object_look, banks["object"], uniform=False)
     half = view.image_size / view.px_per_m / 2
-    for cam in scn.camera:  # both eyes at the same place: a mono orthographic view
+    for cam in scn.camera:  # both eyes at the same place: a mono view
         cam.pos[:], cam.forward[:], cam.up[:] = pos, fwd, up
-        cam.frustum_center, cam.frustum_top, cam.frustum_bottom = 0.0, half, -half
+        if view.perspective:
+            near = 0.05 * view.distance
+            cam.orthographic = 0
+            cam.frustum_near, cam.frustum_far = near, 10.0 * view.distance
+            top_ = near * float(np.tan(view.camera.fovy / 2))
+            cam.frustum_center, cam.frustum_top, cam.frustum_bottom = 0.0, top_, -top_
+        else:
+            cam.frustum_center, cam.frustum_top, cam.frustum_bottom = 0.0, half, -half
     if view.light is not None:
         _add_key_light(scn, view)
     return table
+
+
+def _dress(g: mujoco.MjvGeom, look, texture_ids: dict[str, list[int]], uniform: bool) -> None:
+    """A surface's texture, its repeats per metre and its shine on a visual-scene geom (none
+    for no look or a plain one: without its material the geom is not textured)."""
+    if look is None or not look.kind:
+        g.matid = g.texid = -1
+        if look is not None:
+            g.specular, g.shininess = look.specular, look.shininess
+        return
+    g.texid = materials.pick(texture_ids, look.kind, look.pick)
+    g.texrepeat[:] = (look.repeat, look.repeat)
+    g.texuniform = int(uniform)
+    g.specular, g.shininess = look.specular, look.shininess
 
 
 def _add_key_light(scn: mujoco.MjvScene, view: View) -> None:
@@ -131,9 +220,12 @@ def _add_key_light(scn: mujoco.MjvScene, view: View) -> None:
     key.headlight = 0
     key.dir[:] = light.direction
     key.pos[:] = (*view.camera.center, 0.0)  # directional: centre of the shadow map
-    key.ambient[:], key.diffuse[:], key.specular[:] = 0.0, light.diffuse, light.specular
+    rgb = np.asarray(light.rgb, float)
+    key.ambient[:], key.diffuse[:], key.specular[:] = 0.0, light.diffuse * rgb, \
+        light.specular * rgb
     key.attenuation[:] = (1.0, 0.0, 0.0)
     key.castshadow = int(view.shadows)
+    key.bulbradius = light.softness
 
 
 def texture_pattern(texture: TableTexture, size: int, px_per_m: float) -> np.ndarray:
@@ -160,8 +252,14 @@ def view_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
     segment between them widened by the radius in pixels is its outline (an orthographic view
     draws a sphere as a circle of the same radius); the box bounds the union of a finger's
     outlines clipped to the image. Under a tilted camera the top of a tall object may hide a
-    sliver of a (not overlaid) finger; the box still holds the finger's whole outline.
+    sliver of a (not overlaid) finger; the box still holds the finger's whole outline. A
+    perspective view draws the capsules as hulls of ellipses: their box comes from polygons
+    circumscribed about them (`vistac_sim.render.outlines`).
     """
+    if view.perspective:
+        shapes = many_finger_shapes([(caps, 1.0, 0.0, 1.0) for caps in
+                                     moved_capsules(model, data, ids, view)], view)
+        return np.stack([polygons_box(polys, view.image_size) for polys in shapes])
     s = view.px_per_m
     caps_px = []
     for k, (f, caps) in enumerate(zip(FINGERS, finger_capsules(model, data, ids), strict=True)):

@@ -17,6 +17,7 @@ import numpy as np
 from vistac.dataset import FINGERS
 from vistac_sim.assets import SCENE_XML
 from vistac_sim.mj import mujoco
+from vistac_sim.render.materials import add_banks, banks_of, planar_texcoords
 from vistac_sim.scene.ids import LATERAL_JOINTS, OBJECT_GROUP_COLLISION, SceneIds
 
 if TYPE_CHECKING:
@@ -80,7 +81,22 @@ def compile_scene(obj: SceneObject, cfg: GenerateCfg) -> tuple[mujoco.MjModel, S
     """
     spec = scene_spec(cfg)
     body = spec.body("object")
-    _add_mesh_geom(spec, body, "object_visual", obj.mesh, (*obj.rgb, 1.0), collide=False, group=0)
+    banks = banks_of(cfg)  # textures only for scenes whose effects ask for them
+    visual = _add_mesh_geom(spec, body, "object_visual", obj.mesh, (*obj.rgb, 1.0),
+                            collide=False, group=0)
+    if banks:
+        add_banks(spec, banks)
+        if "object" in banks:  # texture coordinates, flat normals and a textured material
+            mesh = spec.mesh("object_visual_mesh")
+            mesh.usertexcoord = planar_texcoords(obj.mesh.vertices).ravel()
+            # With texture coordinates MuJoCo shades with the vertex normals as given, which
+            # smooth across the rim of a flat top: give each face its own normal instead.
+            mesh.usernormal = np.asarray(obj.mesh.face_normals, np.float32).ravel()
+            mesh.userfacenormal = np.repeat(np.arange(len(obj.mesh.faces), dtype=np.int32), 3)
+            visual.material = next(m.name for m in spec.materials if m.name.startswith("object"))
+        if "table" in banks:
+            spec.geom("table").material = next(m.name for m in spec.materials
+                                               if m.name.startswith("table"))
     for i, piece in enumerate(obj.pieces):
         g = _add_mesh_geom(spec, body, f"piece{i}", piece, (0, 0, 0, 0), collide=True,
                            group=OBJECT_GROUP_COLLISION)
