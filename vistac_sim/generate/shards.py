@@ -130,10 +130,14 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
 
 
 def _discard_run(out: Path) -> None:
-    """Remove what an interrupted run made (its state, images and recordings)."""
+    """Remove what an interrupted run made: its state, images, recordings, and the tables (and
+    their temporaries) of a merge it was killed in."""
     shutil.rmtree(out / PARTIAL)
     shutil.rmtree(out / IMAGES, ignore_errors=True)
     shutil.rmtree(out / "recordings", ignore_errors=True)
+    for table in (CONFIGS, PRESSES):
+        (out / table).unlink(missing_ok=True)
+    remove_stale_temporaries(out)
 
 
 def _state_damaged(state_file: Path) -> bool:
