@@ -124,6 +124,10 @@ CASES = [
          check="images_whole"),
     Case("rerun-after-damaged-state", GP, "", code=0, setup="partial_bad_json",
          check="images_whole"),
+    Case("rerun-after-damaged-state-mid-merge", GP, "", code=0,
+         setup="partial_bad_json_mid_merge", check="images_whole"),
+    Case("resume-killed-mid-merge", GP + " --resume", "", code=0, setup="partial_mid_merge",
+         check="images_whole"),
     # ------------------------------------------------------------------ a finished dataset
     Case("resume-finished", G + " --resume", "", code=0, setup="finished",
          check="nothing_done"),
@@ -227,6 +231,18 @@ def partial(hostile, out: Path) -> None:
 def partial_bad_json(hostile, out: Path) -> None:
     partial(hostile, out)
     (out / ".partial" / "run.json").write_text('{"config": {"n": 2,')
+
+
+def partial_mid_merge(hostile, out: Path) -> None:
+    """Killed in its merge: a half-written table and a temporary of a dead process."""
+    partial(hostile, out)
+    (out / "configs.parquet").write_bytes(b"PAR1 half")
+    (out / ".presses.parquet.999999999.tmp").write_bytes(b"half")
+
+
+def partial_bad_json_mid_merge(hostile, out: Path) -> None:
+    partial_mid_merge(hostile, out)
+    (out / ".partial" / "run.json").write_text("{")
 
 
 def partial_no_state(hostile, out: Path) -> None:

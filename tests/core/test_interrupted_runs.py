@@ -96,3 +96,17 @@ def test_a_killed_writers_temporaries_do_not_outlive_a_rerun(env, tmp_path):
     with pytest.raises(IsADirectoryError):  # a failed write leaves no temporary
         atomic_write_bytes(tmp_path / "sub", b"x")
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([live.name, "sub"])
+
+
+def test_resume_checks_masks_too(tmp_path, capsys):
+    """A finished dataset with --masks whose mask is gone is not 'complete'; one line names it."""
+    out = tmp_path / "m"
+    argv = GEN_OK.format(out=out).split() + ["--masks"]
+    assert main(argv) == 0
+    (out / "masks" / "000001.png").unlink()
+    capsys.readouterr()
+    assert main(argv + ["--resume"]) == 2
+    _one_error_line(capsys, "000001.png: missing")
+    (out / "masks" / "000001.png").write_bytes((out / "masks" / "000000.png").read_bytes())
+    assert main(argv + ["--resume"]) == 0  # whole again: nothing to do
+    assert "nothing to do" in capsys.readouterr().out

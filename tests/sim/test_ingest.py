@@ -292,3 +292,18 @@ def test_round_trip_generate_recordings_then_ingest(tmp_path):
         ia = np.arctan2(m[f"r_y_{f}_i"], -m[f"r_z_{f}_i"])
         ang = np.degrees(np.abs(np.angle(np.exp(1j * (ga - ia)))))
         assert np.median(ang) <= 1.0
+
+
+def test_a_number_name_keeps_its_id_whatever_the_other_names():
+    """Issue 22: one odd name used to renumber every configuration 0..N-1 in name order."""
+    from vistac_sim.recording.ingest.readers import config_ids
+
+    numbers = {"000003": 3, "000010": 10, "7": 7}
+    assert config_ids(list(numbers)) == numbers
+    with_odd = config_ids([*numbers, "zeta", "alpha", "\u0661\u0662", "9" * 30])
+    assert {n: with_odd[n] for n in numbers} == numbers  # unchanged by the odd names
+    odd = sorted(["zeta", "alpha", "\u0661\u0662", "9" * 30])  # after the largest number, 10
+    assert [with_odd[n] for n in odd] == [11, 12, 13, 14]
+    assert config_ids(["b", "a"]) == {"b": 1, "a": 0}  # no number: 0..N-1 in name order
+    with pytest.raises(UserError, match="'007' and '7' give the same configuration id 7"):
+        config_ids(["7", "007"])

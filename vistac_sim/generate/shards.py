@@ -117,7 +117,8 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
         for folder in (partial / "shards", out / IMAGES, out / MASKS, out / "recordings"):
             if folder.is_dir():
                 remove_stale_temporaries(folder)
-        return checked_chunks(out, bool(run_state["config"]["recording"]["write"]))
+        return checked_chunks(out, bool(run_state["config"]["recording"]["write"]),
+                              bool(run_state["config"]["render"].get("masks")))
     if partial.is_dir() and _state_damaged(state_file):  # cannot be resumed: start over
         _discard_run(out)
     if out.exists() and any(out.iterdir()):
@@ -130,10 +131,14 @@ def start_run(out: Path, run_state: dict, resume: bool) -> set[int]:
 
 
 def _discard_run(out: Path) -> None:
-    """Remove what an interrupted run made (its state, images, masks and recordings)."""
+    """Remove what an interrupted run made: its state, images, masks, recordings, and the
+    tables (and their temporaries) of a merge it was killed in."""
     shutil.rmtree(out / PARTIAL)
     for folder in (IMAGES, MASKS, "recordings"):
         shutil.rmtree(out / folder, ignore_errors=True)
+    for table in (CONFIGS, PRESSES):
+        (out / table).unlink(missing_ok=True)
+    remove_stale_temporaries(out)
 
 
 def _state_damaged(state_file: Path) -> bool:
@@ -144,7 +149,7 @@ def _state_damaged(state_file: Path) -> bool:
     return False
 
 
-def checked_chunks(out: Path, recordings: bool) -> set[int]:
+def checked_chunks(out: Path, recordings: bool, masks: bool = False) -> set[int]:
     """The finished chunks whose images (and, if the run writes them, `recordings`) are all
     present and whole; the shards of the others are deleted, so that they are made again
     (rewriting their files)."""
@@ -159,7 +164,7 @@ def checked_chunks(out: Path, recordings: bool) -> set[int]:
         except (OSError, KeyError, pa.ArrowException):
             images, ids = None, []
         csvs = [recording_name(int(i)) for i in ids] if recordings else []
-        if images is not None and not damaged_files(out, images, csvs):
+        if images is not None and not damaged_files(out, images, csvs, masks):
             done.add(chunk)
         else:
             for p in shard_paths(out, chunk):

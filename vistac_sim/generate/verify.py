@@ -16,7 +16,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from vistac.dataset.schema import CONFIGS, IMAGES, MANIFEST, PRESSES
+from vistac.dataset.schema import CONFIGS, IMAGES, MANIFEST, MASKS, PRESSES
 from vistac.errors import UserError
 from vistac_sim.recording.layout import recording_name
 
@@ -61,10 +61,12 @@ def damaged_recording(path: Path) -> str | None:
     return None if last == b"\n" else "truncated"
 
 
-def damaged_files(out: Path, images: list[str], recordings: list[str]) -> list[tuple[Path, str]]:
-    """(file, why) of each damaged image (names under images/) and recording (under
-    recordings/) of a dataset folder `out`."""
-    bad = [(out / IMAGES / n, damaged_png(out / IMAGES / n)) for n in images]
+def damaged_files(out: Path, images: list[str], recordings: list[str],
+                  masks: bool = False) -> list[tuple[Path, str]]:
+    """(file, why) of each damaged image (names under images/), mask (the same names under
+    masks/, if the run writes them) and recording (under recordings/) of a dataset `out`."""
+    folders = (IMAGES, MASKS) if masks else (IMAGES,)
+    bad = [(out / f / n, damaged_png(out / f / n)) for f in folders for n in images]
     bad += [(out / "recordings" / n, damaged_recording(out / "recordings" / n))
             for n in recordings]
     return [(p, why) for p, why in bad if why is not None]
@@ -120,7 +122,7 @@ def check_complete(out: Path, config: dict[str, Any]) -> dict[str, Any]:
     images = names["image"].to_pylist()
     recordings = ([recording_name(int(i)) for i in names["config_id"].to_pylist()]
                   if (config.get("recording") or {}).get("write") else [])
-    bad = damaged_files(out, images, recordings)
+    bad = damaged_files(out, images, recordings, bool((config.get("render") or {}).get("masks")))
     if bad:
         (p, why), more = bad[0], len(bad) - 1
         also = f" (and {more} more file(s))" if more else ""
