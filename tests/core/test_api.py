@@ -17,6 +17,7 @@ import pytest
 import vistac
 from vistac.cli import main
 from vistac.errors import UserError
+from vistac_sim.objects.config import ObjectsCfg
 
 ROOT = Path(vistac.__file__).resolve().parent.parent
 TINY = dict(n=6, seed=3, repeats=2, chunk_size=3)
@@ -51,12 +52,13 @@ def _manifest(root: Path) -> dict:
 
 def test_generate_through_the_api_writes_the_cli_bytes_and_nothing_on_stdout(tmp_path,
                                                                              capsys):
-    ds = vistac.generate(vistac.GenerateCfg.from_preset("clean", noise=0.05, **TINY),
+    ds = vistac.generate(vistac.GenerateCfg.from_preset("clean", noise=0.05, **TINY,
+                                                        objects=ObjectsCfg(n_objects=3)),
                          tmp_path / "api", workers=1)
     assert capsys.readouterr().out == ""  # the library prints nothing; the CLI prints
     argv = ["generate", "--out", str(tmp_path / "cli"), "--noise", "0.05", "--n", "6",
-            "--seed", "3", "--repeats", "2", "--chunk-size", "3", "--workers", "1",
-            "--no-progress"]
+            "--seed", "3", "--repeats", "2", "--chunk-size", "3", "--n-objects", "3",
+            "--workers", "1", "--no-progress"]
     assert main(argv) == 0
     assert "wrote" in capsys.readouterr().out
     api, cli = _files(tmp_path / "api"), _files(tmp_path / "cli")
@@ -147,3 +149,22 @@ def test_train_and_evaluate_through_the_api(tiny_learn_data, tmp_path, capsys):
     opened = vistac.Run.open(tmp_path / "run")
     assert (opened.best_epoch, opened.objective) == pytest.approx((run.best_epoch,
                                                                    run.objective))
+
+
+def test_ingest_through_the_api_writes_the_cli_bytes(tmp_path, capsys):
+    """Recordings written by the simulator, read back through `vistac.ingest` and `vistac
+    ingest`: the same tables; the API prints nothing."""
+    cfg = vistac.GenerateCfg.from_preset("lab", recordings=True, n=4, seed=2, repeats=3,
+                                         objects=ObjectsCfg(n_objects=2))
+    sim = vistac.generate(cfg, tmp_path / "sim", workers=1)
+    src = vistac.IngestSources(recordings=sim.path / "recordings", images=sim.path / "images")
+    api = vistac.ingest(src, tmp_path / "api")
+    assert capsys.readouterr().out == ""
+    assert main(["ingest", "--recordings", str(sim.path / "recordings"), "--images",
+                 str(sim.path / "images"), "--out", str(tmp_path / "cli")]) == 0
+    assert "wrote" in capsys.readouterr().out
+    for name in ("configs.parquet", "presses.parquet"):
+        assert (api.path / name).read_bytes() == (tmp_path / "cli" / name).read_bytes(), name
+    assert api.manifest["generator"] == "vistac ingest" and len(api) == len(sim)
+    with pytest.raises(UserError, match="not an empty folder"):
+        vistac.ingest(src, tmp_path / "api")

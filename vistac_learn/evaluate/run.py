@@ -1,8 +1,9 @@
 """Scoring a trained run (or the geometric baseline) on a split (`vistac evaluate`).
 
 For each finger: every metric of docs/study.md section 6 plus angular metrics
-(`vistac_learn.metrics.cone_metrics`), printed as a table in the study's layout (docs/study.md
-section 9) and saved, with the per-prediction values and the figures, into an output folder:
+(`vistac_learn.metrics.cone_metrics`), as a table in the study's layout (docs/study.md section 9,
+which `vistac evaluate` prints; these functions print nothing) and saved, with the
+per-prediction values and the figures, into an output folder:
 
 - ``metrics.json``: settings, counts, inference speed, the scalar metrics per finger, the table.
 - ``predictions.parquet``: one row per prediction (config_id, rotation, prediction and per-sample
