@@ -12,13 +12,13 @@ Everything is read from the (possibly rotated) top-view image:
 2. Object outline near each pad, sub-pixel: the colour distance to the table (the median of the
    border pixels) is thresholded at half the object's contrast, and every pixel edge whose two
    ends straddle the threshold gives one crossing point, linearly interpolated (marching
-   squares without the bookkeeping). Crossings next to a finger (its mask dilated by
-   `finger_margin_px`) are dropped: there the colours mix with the overlay's.
-3. Contact point and normal of each pad: the crossings within r (1 + `reach`) of c, in a frame
-   whose normal is the direction from their centroid to c, are fitted with a parabola
-   y = b0 + b1 x + b2 x^2 (a line when they do not lie on both sides of the pad). The contact
-   is the point of that curve nearest to c (where the pad's circle meets the outline), the
-   outward normal the curve's normal there, oriented towards c.
+   squares without the bookkeeping). Crossings next to a finger (every pixel of a finger's
+   colour, widened by `finger_margin_px`) are dropped; where object pixels touch finger pixels
+   the edge between them counts as outline (there the object runs against the pad).
+3. Contact point and normal of each pad (`fit_contact`): the outline points within
+   r (1 + `reach`) of c; a face through the contact is fitted with a line (the contact is the
+   foot of c on it, the normal the line's), else the contact is the nearest outline point and
+   the normal the direction of the line separating c from the outline (a corner).
 4. Label: d = unit(own contact - other contact); if the angle between d and the normal
    exceeds atan(mu) it is turned onto the cone's edge. Then (r_y, r_z) of d in the finger's
    sensor frame (`geometric.sensor_direction`: image v up, z along a, the thumb's y mirrored).
@@ -61,8 +61,9 @@ class PinchCfg:
         reach: Outline crossings closer than r (1 + reach) to the tip centre are used.
         finger_margin_px: Crossings within this many pixels of a finger are dropped.
         min_points: Fewest crossings for a fit; fewer: the pad's contact is not found.
-        search_deg: Normals searched within this angle of the direction from the points'
-            centroid to the tip centre.
+        nearest_px: The points at most this much farther from the tip centre than the
+            nearest one give the first normal estimate.
+        search_deg: The separating direction is searched within this angle of it.
         step_deg: Step of that search (refined by a parabola through the best three).
         inlier_px: Points within this distance of the supporting line belong to the touching
             face.
@@ -75,7 +76,8 @@ class PinchCfg:
     reach: float = 1.0
     finger_margin_px: int = 0
     min_points: int = 6
-    search_deg: float = 75.0
+    nearest_px: float = 0.3
+    search_deg: float = 60.0
     step_deg: float = 0.25
     inlier_px: float = 1.0
     min_face: float = 0.25
@@ -141,12 +143,14 @@ def outline_crossings(field: np.ndarray, level: float, valid: np.ndarray) -> np.
 def fit_contact(tip: Fingertip, points: np.ndarray, cfg: PinchCfg = PinchCfg()) -> Contact:
     """Contact point and outward normal of one pad from outline points near it.
 
-    The normal is the direction n that maximises min_p (c - p) . n over the outline points p
-    within reach: the separating direction of the centre c from the object, which points from
-    the object's point nearest to c towards c, for a face as for a corner. The points within
-    `cfg.inlier_px` of that supporting line (the touching face) are then fitted with a line
-    (total least squares); the contact is the foot of c on it. With too few such points, the
-    contact is c - g n (g the separation).
+    Among the outline points within reach of the tip centre c, the nearest ones give a first
+    normal (from them towards c). The separating direction n, the one that maximises
+    min_p (c - p) . n, refines it: for a corner it points from the corner towards c, for a face
+    along the face's normal. When the points within `cfg.inlier_px` of the separating line lie
+    on both sides of the contact (a face), a line fitted to them (total least squares) gives
+    the normal and the contact, the foot of c on that line. Otherwise (a corner, a strongly
+    curved outline) the contact is the nearest point's direction at the nearest distance and
+    the normal is n.
 
     Args:
         tip: The located finger (centre c, radius r).
@@ -161,19 +165,11 @@ def fit_contact(tip: Fingertip, points: np.ndarray, cfg: PinchCfg = PinchCfg()) 
     near = rel[np.hypot(rel[:, 0], rel[:, 1]) < r * (1 + cfg.reach)]
     if len(near) < cfg.min_points:
         return Contact.missing()
-    mean = near.mean(axis=0)
-    base = np.arctan2(mean[1], mean[0])
-    theta = base + np.radians(np.arange(-cfg.search_deg, cfg.search_deg + 1e-9, cfg.step_deg))
-    dirs = np.stack([np.cos(theta), np.sin(theta)], 1)
-    sep = (near @ dirs.T).min(axis=0)  # separation of c from the points along each direction
-    k = int(np.argmax(sep))
-    if 0 < k < len(sep) - 1:  # parabola through the three best
-        den = sep[k - 1] - 2 * sep[k] + sep[k + 1]
-        off = 0.5 * (sep[k - 1] - sep[k + 1]) / den if den < 0 else 0.0
-        best = theta[k] + off * np.radians(cfg.step_deg)
-    else:
-        best = theta[k]
-    n = np.array([np.cos(best), np.sin(best)])
+    dist = np.hypot(near[:, 0], near[:, 1])
+    closest = near[dist < dist.min() + cfg.nearest_px]
+    n_near = closest.mean(axis=0)
+    n_near /= np.hypot(*n_near)
+    n = _separating_direction(near, n_near, cfg)
     d = near @ n
     g = float(d.min())
     face = near[d < g + cfg.inlier_px]
@@ -183,10 +179,25 @@ def fit_contact(tip: Fingertip, points: np.ndarray, cfg: PinchCfg = PinchCfg()) 
         centroid = face.mean(axis=0)
         _, _, vt = np.linalg.svd(face - centroid)
         n_fit = vt[1] if vt[1] @ n > 0 else -vt[1]  # normal of the best line, towards c
-        if n_fit @ n > np.cos(np.radians(cfg.search_deg)):
-            n = n_fit
-            g = float(centroid @ n)
-    return Contact(c - g * n, n)
+        return Contact(c - float(centroid @ n_fit) * n_fit, n_fit)
+    # no face through the contact (a corner, a curve): the point nearest to c, the normal of
+    # the separating line
+    return Contact(c - float(dist.min()) * n_near, n)
+
+
+def _separating_direction(near: np.ndarray, start: np.ndarray, cfg: PinchCfg) -> np.ndarray:
+    """The unit n maximising min_p p . n over points p (relative to c): the direction of the
+    line separating c from the points, searched within `cfg.search_deg` of `start`."""
+    base = np.arctan2(start[1], start[0])
+    theta = base + np.radians(np.arange(-cfg.search_deg, cfg.search_deg + 1e-9, cfg.step_deg))
+    sep = (near @ np.stack([np.cos(theta), np.sin(theta)])).min(axis=0)
+    k = int(np.argmax(sep))
+    best = theta[k]
+    if 0 < k < len(sep) - 1:  # parabola through the best three
+        den = sep[k - 1] - 2 * sep[k] + sep[k + 1]
+        if den < 0:
+            best += 0.5 * (sep[k - 1] - sep[k + 1]) / den * np.radians(cfg.step_deg)
+    return np.array([np.cos(best), np.sin(best)])
 
 
 def clamp_to_cone(d: np.ndarray, normal: np.ndarray, friction: float) -> np.ndarray:
@@ -232,16 +243,31 @@ def locate(img: np.ndarray, colours: dict, loc: LocatorCfg, margin_px: int
     return tips, near_finger, table
 
 
+def touching_edges(solid: np.ndarray, finger: np.ndarray) -> np.ndarray:
+    """(P, 2) midpoints of the pixel edges between an object pixel and a finger pixel: where
+    the object's outline runs against a pad, closer than a pixel (the contact itself)."""
+    pts = []
+    for a, b, shift in ((solid[:-1, :], finger[1:, :], (0.0, 0.5)),
+                        (finger[:-1, :], solid[1:, :], (0.0, 0.5)),
+                        (solid[:, :-1], finger[:, 1:], (0.5, 0.0)),
+                        (finger[:, :-1], solid[:, 1:], (0.5, 0.0))):
+        v, u = np.nonzero(a & b)
+        pts.append(np.stack([u + shift[0], v + shift[1]], 1))
+    return np.concatenate(pts).astype(float)
+
+
 def image_outline(img: np.ndarray, table: np.ndarray, near_finger: np.ndarray,
                   object_tol: float) -> np.ndarray:
     """(P, 2) sub-pixel outline points of the object: where the colour distance to the table
-    crosses half the object's contrast (its median over pixels clearly off the table)."""
+    crosses half the object's contrast (its median over pixels clearly off the table), and
+    where object pixels touch the (margin-widened) finger pixels (`touching_edges`)."""
     dist = np.linalg.norm(img.astype(np.float32) - table, axis=2)
     solid = (dist > object_tol) & ~near_finger
     if not solid.any():
         return np.zeros((0, 2))
     level = 0.5 * float(np.median(dist[solid]))
-    return outline_crossings(dist, max(level, 0.5 * object_tol), ~near_finger)
+    return np.concatenate([outline_crossings(dist, max(level, 0.5 * object_tol), ~near_finger),
+                           touching_edges(solid, near_finger)])
 
 
 def predict_image(img: np.ndarray, colours: dict, fingers: tuple[str, ...], friction: float,
