@@ -4,6 +4,7 @@ and both in `evaluate`'s output."""
 from __future__ import annotations
 
 import json
+import shutil
 
 import cv2
 import numpy as np
@@ -13,6 +14,7 @@ from learn_fixtures import INDEX_RGB, TABLE, THUMB_RGB, make_dataset
 
 from vistac.cli import main
 from vistac.dataset import open_dataset
+from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate import references as refs_mod
 from vistac_learn.evaluate.geometric import sensor_direction
 from vistac_learn.evaluate.pinch import clamp_to_cone, predict_image
@@ -201,3 +203,22 @@ def test_cli_baseline_pinch(tiny_run, tmp_path, capsys):
     saved = json.loads((out / "metrics.json").read_text())
     assert saved["baseline"] == "pinch" and saved["n_predictions"] == 2 * 3
     assert saved["settings"]["friction"] is None  # the dataset's (fixture: no physics: 0.8)
+
+
+def test_demo_report_shows_the_references(tiny_run, tmp_path):
+    from vistac_learn.demo import write_report
+    from vistac_learn.evaluate.run import evaluate_baseline
+
+    ds, run = tiny_run
+    evaluate_run(run, split="test", make_plots=False)
+    evaluate_baseline(ds, tmp_path / "baseline", split="test", finger="both",
+                      rotations=RotationCfg("none", 1), make_plots=False)
+    data = tmp_path / "data"  # the report reads the counts a generated manifest holds
+    shutil.copytree(ds, data)
+    manifest = json.loads((data / "manifest.json").read_text())
+    manifest["counts"] |= {"split": {"train": 4, "val": 2, "test": 2}, "objects": 4}
+    (data / "manifest.json").write_text(json.dumps(manifest))
+    text = write_report(tmp_path, data, run, 0.0, 0.0).read_text()
+    for row in ("| geometric baseline (index) |", "| noise floor (clean force) (thumb) |",
+                "| pinch baseline (index) |", "| smallconv, edge-crop (thumb) |"):
+        assert text.count(row) == 1, row
