@@ -76,8 +76,35 @@ def _entry(label, tables, rows, predict_one, perturb=None) -> dict:
         failures += lost
     return {"label": label, "fingers": list(FINGERS),
             "metrics": score(np.array(preds), tables, rows, rows, FINGERS),
+            "by_family": by_family(np.array(preds), tables, rows),
             "ms_per_image": 1000 * wall / len(rows), "cpu_ms_per_image": 1000 * cpu / len(rows),
             "failures": int(failures)}
+
+
+def by_family(pred: np.ndarray, tables, rows: np.ndarray) -> dict:
+    """Median angle to the cone mean per object family (and count), per finger."""
+    fam = tables.configs["object_family"].to_numpy()[rows] \
+        if "object_family" in tables.configs else np.full(len(rows), "all")
+    out = {}
+    for k in sorted(set(fam)):
+        sel = fam == k
+        res = score(pred[sel], tables, rows[sel], rows[sel], FINGERS)
+        out[str(k)] = {"n": int(sel.sum()), **{f: res[f]["angle_to_mean_median_deg"]
+                                                for f in FINGERS}}
+    return out
+
+
+def family_table(entries: list[dict]) -> str:
+    """Markdown: median angle to the cone mean per object family, index / thumb."""
+    fams = sorted({k for e in entries for k in e.get("by_family", {})})
+    head = ["model / setting", *(f"{k} (n {entries[0]['by_family'][k]['n']})" for k in fams)]
+    lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+    for e in entries:
+        if "by_family" in e:
+            cells = [f"{e['by_family'][k]['index']:.2f} / {e['by_family'][k]['thumb']:.2f}"
+                     for k in fams]
+            lines.append("| " + " | ".join([e["label"], *cells]) + " |")
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -104,8 +131,11 @@ def main(argv: list[str] | None = None) -> int:
     photoish = Photoish(args.noise_std, args.jpeg_quality, args.seed)
     tag = f"noise {args.noise_std:g}/255 + JPEG {args.jpeg_quality}"
 
+    clean = np.concatenate([t.configs[[f"force_clean_{f}_y", f"force_clean_{f}_z"]]
+                            .to_numpy(float)[rows] for f in FINGERS], axis=1)
     entries = [{"label": "noise floor (clean force)", "fingers": list(FINGERS),
-                "metrics": noise_floor(t, rows, FINGERS)},
+                "metrics": noise_floor(t, rows, FINGERS),
+                "by_family": by_family(clean, t, rows)},
                _entry("pinch baseline", t, rows, pinch_one),
                _entry("geometric baseline", t, rows, geo_one)]
     mean = mean_entry(args.data)
@@ -137,6 +167,10 @@ def main(argv: list[str] | None = None) -> int:
         "this process, on a machine shared with other jobs.",
         "",
         table(entries, EXTRA),
+        "",
+        "Median angle to the cone mean (deg, index / thumb) by object family:",
+        "",
+        family_table(entries),
     ])
     save(args.out, args.name, result, md)
     return 0
