@@ -211,11 +211,12 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
         res = evaluate_baseline(cfg.data, out, cfg.split, cfg.finger,
                                 RotationCfg(cfg.rotations, cfg.n_rotations), cfg.tta,
                                 not cfg.no_plots, progress=progress,
-                                max_missing_pct=cfg.max_missing_pct)
+                                max_missing_pct=cfg.max_missing_pct, baseline=cfg.baseline)
     else:
         res = evaluate_run(cfg.run, cfg.data, cfg.split, cfg.tta, cfg.checkpoint, out,
                            not cfg.no_plots, cfg.device, progress=progress,
-                           cross_dataset=cfg.cross_dataset, max_missing_pct=cfg.max_missing_pct)
+                           cross_dataset=cfg.cross_dataset, max_missing_pct=cfg.max_missing_pct,
+                           references=not cfg.no_references)
     return Evaluation(out, res)
 
 

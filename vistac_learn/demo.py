@@ -2,8 +2,9 @@
 
 Generates a small simulated dataset (objects split between train, validation and test), trains
 the default model (`tipnet` on fingertip crops, both fingers), evaluates it and the geometric
-baseline on the held-out objects, and writes `report.md` with the study-layout tables and
-figures. Re-running reuses what is already done (the dataset, a finished
+baseline on the held-out objects, beside the references of simulated data (the noise floor and
+the pinch baseline, `vistac_learn.evaluate.references`), and writes `report.md` with the
+study-layout tables and figures. Re-running reuses what is already done (the dataset, a finished
 or interrupted training run).
 """
 
@@ -73,6 +74,9 @@ def run_demo(cfg: DemoCfg) -> Path:
 
 def write_report(out: Path, data: Path, run: Path, t_data: float, t_train: float) -> Path:
     """Write `report.md` from the dataset manifest and the two metrics files."""
+    from vistac_learn.evaluate.references import reference_entries
+    from vistac_learn.metrics.scoring import format_table
+
     manifest = json.loads((data / "manifest.json").read_text())
     model = json.loads((run / "eval" / "test" / "metrics.json").read_text())
     base = json.loads((out / "baseline" / "metrics.json").read_text())
@@ -87,6 +91,17 @@ def write_report(out: Path, data: Path, run: Path, t_data: float, t_train: float
     first = sorted((data / "images").iterdir())[0]
     shutil.copyfile(first, figures / "example_input.png")
     counts = manifest["counts"]
+    fingers = tuple(model["fingers"])
+    refs = model.get("references")
+    rows = [(f"{r['label']} ({f})", r["metrics"][f]) for r in (model, base) for f in fingers
+            if f in r["metrics"]]
+    about_refs = [] if not refs else [
+        "The noise floor scores the dataset's noise-free forces as a prediction against the "
+        "noisy presses: what the labels' own noise costs. The pinch baseline reads the contact "
+        "points from the image and predicts the closing axis through them, clamped to the "
+        f"friction cone (mu {refs['pinch']['friction']:g}), with no learning; "
+        f"{refs['pinch']['ms_per_image']:.0f} ms per image, unrotated images.",
+        ""]
     lines = [
         "# vistac demo report",
         "",
@@ -102,10 +117,10 @@ def write_report(out: Path, data: Path, run: Path, t_data: float, t_train: float
         "## Test split: held-out objects, both fingers (the study's columns)",
         "",
         "```",
-        model["table"],
-        *base["table"].splitlines()[2:],  # same header: rows only
+        format_table(rows + reference_entries(refs, fingers)),
         "```",
         "",
+        *about_refs,
         "![example input](figures/example_input.png)",
         "![model cones, index](figures/model_cones_index.png)",
         "![model cones, thumb](figures/model_cones_thumb.png)",

@@ -1,5 +1,5 @@
-"""`vistac evaluate`: its options (declared by `EvaluateCfg`) and handler (a run, or the
-geometric baseline)."""
+"""`vistac evaluate`: its options (declared by `EvaluateCfg`) and handler (a run, or a
+non-learned baseline: geometric or pinch)."""
 
 from __future__ import annotations
 
@@ -20,14 +20,16 @@ class EvaluateCfg(Config):
     """What `vistac evaluate` scores, on which split, and where the results go."""
 
     run: str | None = param(None, help="run folder (from `vistac train`)")
-    baseline: Literal["geometric"] | None = param(None, help="score a baseline instead of a run")
+    baseline: Literal["geometric", "pinch"] | None = param(
+        None, help="score a baseline instead of a run: geometric (surface normal) or pinch "
+        "(closing axis through the contact points, friction cone)")
     data: str | None = param(None, help="dataset (default: the run's; required with --baseline)")
     split: str = param("test", choices=("train", "val", "test"), help="split to score")
     tta: bool = param(False, help="test-time augmentation: average each configuration's "
                       "rotations and its mirrored view")
     checkpoint: Literal["best", "last"] = param("best", help="the run's checkpoint")
     out: str | None = param(None, help="output folder (default <run>/eval/<split>[-tta], with "
-                            "--baseline <data>/eval/geometric-<split>)")
+                            "--baseline <data>/eval/<baseline>-<split>)")
     finger: str = param("index", choices=FINGER_CHOICES, help="baseline only: fingers to predict")
     rotations: str = param(RotationCfg.mode, choices=ROTATION_MODES,
                            help="baseline only: rotation set")
@@ -40,6 +42,8 @@ class EvaluateCfg(Config):
     max_missing_pct: float = param(MAX_MISSING_PCT, ge=0, le=100, help="refuse to score a "
                                    "split when the fingertips of more than this share (%%) of "
                                    "its configurations are not found in their images")
+    no_references: bool = param(False, help="run only: skip the noise floor and the pinch "
+                                "baseline scored beside the model on simulated data")
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -48,7 +52,7 @@ class EvaluateCfg(Config):
         if self.baseline and not self.data:
             raise ConfigError("baseline", "needs --data")
         if not self.baseline and not self.run:
-            raise ConfigError("run", "required (or --baseline geometric --data D --out DIR)")
+            raise ConfigError("run", "required (or --baseline geometric|pinch --data D)")
         if self.run and not (Path(self.run) / "config.json").is_file():
             raise ConfigError("run", f"{self.run} is not a run folder (no config.json)")
 
@@ -58,7 +62,7 @@ class EvaluateCfg(Config):
         if self.out:
             return Path(self.out)
         if self.baseline:
-            return Path(self.data) / "eval" / f"geometric-{self.split}"
+            return Path(self.data) / "eval" / f"{self.baseline}-{self.split}"
         return Path(self.run) / "eval" / (self.split + ("-tta" if self.tta else ""))
 
 
@@ -69,10 +73,12 @@ def add_command(sub: argparse._SubParsersAction) -> None:
     """Register `vistac evaluate`."""
     p = sub.add_parser(
         "evaluate",
-        help="score a run (or the geometric baseline) with the cone metrics",
-        description="Score a trained run's best checkpoint, or the non-learned geometric "
-        "baseline, on a dataset split: every thesis section-6 metric plus angular metrics per "
-        "finger, a table in the study's layout, metrics.json, predictions.parquet and figures.",
+        help="score a run (or a non-learned baseline) with the cone metrics",
+        description="Score a trained run's best checkpoint, or a non-learned baseline "
+        "(geometric or pinch), on a dataset split: every thesis section-6 metric plus angular "
+        "metrics per finger, a table in the study's layout, metrics.json, predictions.parquet "
+        "and figures. On simulated data the table also shows the noise floor (the clean forces "
+        "scored as a prediction) and, beside a run, the pinch baseline.",
         formatter_class=HelpFormatter,
     )
     add_options(p, EvaluateCfg, OPTIONS)

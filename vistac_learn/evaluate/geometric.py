@@ -21,6 +21,7 @@ A finger that cannot be found yields (0, -1) (straight against the approach) and
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -127,6 +128,45 @@ def rotation_angles(rotations: RotationCfg, row: int) -> np.ndarray:
     return np.random.default_rng([0, int(row)]).uniform(0, 360, rotations.n)
 
 
+def image_predictions(
+    tables: DatasetTables,
+    rows: np.ndarray,
+    rotations: RotationCfg,
+    predict: Callable[[np.ndarray], tuple[np.ndarray, int]],
+    desc: str = "baseline",
+    progress: bool = False,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """An image-only predictor applied to every (configuration, rotation) of the given rows.
+
+    Args:
+        tables: The dataset.
+        rows: Configuration rows.
+        rotations: Angles each image is rotated by (table colour fills the corners).
+        predict: Image (H, W, 3) uint8 RGB -> ((2F,) prediction, fingers that fell back).
+        desc: Progress bar label.
+        progress: Show a progress bar.
+
+    Returns:
+        (pred (M, 2F), item_row (M,), item_rot (M,), failures), items ordered row-major.
+    """
+    rows = np.asarray(rows, dtype=np.int64)
+    bg = tuple(int(round(c * 255)) for c in tables.table_rgb)
+    preds, item_row, item_rot, failures = [], [], [], 0
+    for row in tqdm(rows, desc=desc, leave=False, disable=not progress):
+        img = read_rgb(tables.image_path(row))
+        h, w = img.shape[:2]
+        for k, ang in enumerate(rotation_angles(rotations, row)):
+            rot = img if ang == 0 else cv2.warpAffine(
+                img, rotation_matrix(ang, w, h), (w, h), flags=cv2.INTER_LINEAR,
+                borderMode=cv2.BORDER_CONSTANT, borderValue=bg)
+            p, lost = predict(rot)
+            failures += lost
+            preds.append(p)
+            item_row.append(row)
+            item_rot.append(k)
+    return np.array(preds), np.array(item_row), np.array(item_rot), failures
+
+
 def baseline_predictions(
     tables: DatasetTables,
     rows: np.ndarray,
@@ -148,20 +188,7 @@ def baseline_predictions(
     Returns:
         (pred (M, 2F), item_row (M,), item_rot (M,), failures), items ordered row-major.
     """
-    rows = np.asarray(rows, dtype=np.int64)
     colours = {f: tables.finger_rgb(f) for f in FINGERS}
-    bg = tuple(int(round(c * 255)) for c in tables.table_rgb)
-    preds, item_row, item_rot, failures = [], [], [], 0
-    for row in tqdm(rows, desc="geometric baseline", leave=False, disable=not progress):
-        img = read_rgb(tables.image_path(row))
-        h, w = img.shape[:2]
-        for k, ang in enumerate(rotation_angles(rotations, row)):
-            rot = img if ang == 0 else cv2.warpAffine(
-                img, rotation_matrix(ang, w, h), (w, h), flags=cv2.INTER_LINEAR,
-                borderMode=cv2.BORDER_CONSTANT, borderValue=bg)
-            p, lost = predict_image(rot, colours, fingers, cfg)
-            failures += lost
-            preds.append(p)
-            item_row.append(row)
-            item_rot.append(k)
-    return np.array(preds), np.array(item_row), np.array(item_rot), failures
+    return image_predictions(tables, rows, rotations,
+                             lambda img: predict_image(img, colours, fingers, cfg),
+                             "geometric baseline", progress)

@@ -34,6 +34,9 @@ from vistac_learn.data.samples import RotationCfg, fingers_of
 from vistac_learn.data.tip_coverage import MAX_MISSING_PCT, tip_coverage
 from vistac_learn.evaluate import plots
 from vistac_learn.evaluate.geometric import GeometricCfg, baseline_predictions
+from vistac_learn.evaluate.pinch import PinchCfg, pinch_predictions
+from vistac_learn.evaluate.references import has_clean_forces, noise_floor, reference_entries
+from vistac_learn.evaluate.references import references as reference_scores
 from vistac_learn.metrics.scoring import average_over_rotations, format_table, predict, score
 from vistac_learn.train.checkpoints import load_checkpoint, load_weights
 from vistac_learn.train.config import (
@@ -47,6 +50,10 @@ from vistac_learn.train.config import (
 from vistac_learn.train.run_files import read_run_config, run_settings
 
 RETRAIN = "train the run again (`vistac train` into this folder without --resume)"
+
+# Baselines by name: (settings class, predictions over (configuration, rotation) pairs).
+BASELINES = {"geometric": (GeometricCfg, baseline_predictions),
+             "pinch": (PinchCfg, pinch_predictions)}
 
 
 def load_run(run: str | Path) -> tuple[TrainCfg, dict]:
@@ -83,9 +90,14 @@ def _write_outputs(
     fingers: tuple[str, ...],
     info: dict,
     make_plots: bool,
+    refs: dict | None = None,
 ) -> dict:
     """Score and save (JSON, per-prediction parquet, PNGs); return the JSON dict (its
-    ``table`` is what `vistac evaluate` prints)."""
+    ``table`` is what `vistac evaluate` prints).
+
+    `refs` (`references.references`) adds the noise floor and the pinch baseline below the
+    scored rows of the table and under ``"references"`` in the JSON.
+    """
     out.mkdir(parents=True, exist_ok=True)
     res = score(pred, tables, rows, item_row, fingers, full=True)
     cids = tables.configs["config_id"].to_numpy()
@@ -96,9 +108,12 @@ def _write_outputs(
             frame[f"{f}_{k}"] = v
     pd.DataFrame(frame).to_parquet(out / "predictions.parquet", index=False)
     summary = {f: {k: v for k, v in r.items() if np.isscalar(v)} for f, r in res.items()}
-    table = format_table([(f"{label} ({f})", summary[f]) for f in fingers])
+    table = format_table([(f"{label} ({f})", summary[f]) for f in fingers]
+                         + reference_entries(refs, fingers))
     result = {**info, "label": label, "fingers": list(fingers), "n_configs": int(len(rows)),
               "n_predictions": int(len(pred)), "metrics": summary, "table": table}
+    if refs is not None:
+        result["references"] = refs
     atomic_write_bytes(out / "metrics.json", json.dumps(result, indent=2).encode())
     if make_plots:
         order = np.argsort(rows)
@@ -147,8 +162,9 @@ def evaluate_run(
     progress: bool = False,
     cross_dataset: bool = False,
     max_missing_pct: float = MAX_MISSING_PCT,
+    references: bool = True,
 ) -> dict:
-    """Score a run's model on a split.
+    """Score a run's model on a split, beside the references (noise floor, pinch baseline).
 
     Args:
         run: Run folder.
@@ -164,6 +180,8 @@ def evaluate_run(
         cross_dataset: Allow a dataset other than the run's (see `run_dataset`).
         max_missing_pct: Refuse a split of which more than this share (%) of the
             configurations has a fingertip the locator does not find (tip view).
+        references: Score the noise floor and the pinch baseline on the same configurations
+            (`vistac_learn.evaluate.references`; skipped for data without clean forces).
 
     Returns:
         The content of ``metrics.json``.
@@ -210,8 +228,11 @@ def evaluate_run(
             "fingertips_line": coverage.line() if coverage is not None else None}
     out = Path(out) if out is not None else Path(run) / "eval" / (split + ("-tta" if tta else ""))
     label = f"{cfg.model}, {cfg.variant}" + (", TTA" if tta else "")
-    return _write_outputs(out, label, pred, tables, ds.rows, item_row, item_rot,
-                          fingers_of(cfg.finger), info, make_plots)
+    fingers = fingers_of(cfg.finger)
+    refs = reference_scores(tables, ds.rows, fingers, cache_dir=cfg.cache_dir,
+                            progress=progress) if references else None
+    return _write_outputs(out, label, pred, tables, ds.rows, item_row, item_rot, fingers, info,
+                          make_plots, refs)
 
 
 def evaluate_baseline(
@@ -222,11 +243,13 @@ def evaluate_baseline(
     rotations: RotationCfg | None = None,
     tta: bool = False,
     make_plots: bool = True,
-    cfg: GeometricCfg | None = None,
+    cfg: GeometricCfg | PinchCfg | None = None,
     progress: bool = False,
     max_missing_pct: float = MAX_MISSING_PCT,
+    baseline: str = "geometric",
 ) -> dict:
-    """Score the geometric baseline on a split (same metrics and outputs as `evaluate_run`).
+    """Score a non-learned baseline on a split (same metrics and outputs as `evaluate_run`),
+    beside the noise floor on simulated data.
 
     Args:
         data: Dataset directory.
@@ -237,16 +260,20 @@ def evaluate_baseline(
             the study's 20 fixed angles).
         tta: Average each configuration's rotations before scoring.
         make_plots: Write the PNG figures.
-        cfg: Baseline settings (default `GeometricCfg()`).
+        cfg: Baseline settings (default `GeometricCfg()` or `PinchCfg()`).
         progress: Show a progress bar.
         max_missing_pct: Refuse a split of which more than this share (%) of the
             configurations has a fingertip the locator does not find.
+        baseline: ``geometric`` (surface normal, `evaluate.geometric`) or ``pinch`` (closing
+            axis and friction cone, `evaluate.pinch`).
 
     Returns:
         The content of ``metrics.json``.
     """
     rotations = rotations or RotationCfg()
-    cfg = cfg or GeometricCfg()
+    if baseline not in BASELINES:
+        raise UserError(f"--baseline must be {' or '.join(BASELINES)}, not {baseline!r}")
+    cfg = cfg or BASELINES[baseline][0]()
     tables = open_dataset(data)
     fingers = fingers_of(finger)
     rows = tables.rows(split)
@@ -254,17 +281,19 @@ def evaluate_baseline(
                             rows, fingers, split)
     coverage.check(max_missing_pct)
     t0 = time.perf_counter()
-    pred, item_row, item_rot, failures = baseline_predictions(
+    pred, item_row, item_rot, failures = BASELINES[baseline][1](
         tables, rows, fingers, rotations, cfg, progress)
     elapsed = time.perf_counter() - t0
     if tta:
         pred, item_row = average_over_rotations(pred, item_row)
         item_rot = np.full(len(item_row), -1)
-    info = {"kind": "baseline", "baseline": "geometric", "settings": dataclasses.asdict(cfg),
+    info = {"kind": "baseline", "baseline": baseline, "settings": dataclasses.asdict(cfg),
             "data": str(data), "split": split, "tta": tta, "failures": failures,
             "fingertips": coverage.as_dict(), "fingertips_line": coverage.line(),
             "images_per_s": len(rows) * rotations.count / max(elapsed, 1e-9),
             "n_rotations": rotations.count}
-    label = "geometric baseline" + (", TTA" if tta else "")
+    refs = ({"noise_floor": {"metrics": noise_floor(tables, rows, fingers)}}
+            if has_clean_forces(tables, fingers) else None)
+    label = f"{baseline} baseline" + (", TTA" if tta else "")
     return _write_outputs(Path(out), label, pred, tables, rows, item_row, item_rot, fingers,
-                          info, make_plots)
+                          info, make_plots, refs)
