@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from vistac.errors import UserError
+from vistac.folder_lock import hold
 from vistac.outputs import Dataset, Evaluation, Report, Run
 
 if TYPE_CHECKING:  # the configs live beside the code that uses them
@@ -69,8 +70,7 @@ def generate(cfg: GenerateCfg, out: str | Path, *, workers: int = 0, resume: boo
     """
     from vistac.dataset.files import check_out_dir
     from vistac.engine import EngineCfg
-    from vistac_sim.generate.command import check_workers, drop_unstarted_run
-    from vistac_sim.generate.processes import start_fork_server, stop_fork_server
+    from vistac_sim.generate.processes import check_workers, start_fork_server, stop_fork_server
 
     for path in cfg.objects.paths:
         if not Path(path).exists():
@@ -88,16 +88,11 @@ def generate(cfg: GenerateCfg, out: str | Path, *, workers: int = 0, resume: boo
     out = check_out_dir(out)
     if engine.engine == "local" and workers > 1:
         start_fork_server()  # the workers' imports run beside this process's own, below
-    try:
+    try:  # the run holds the folder's lock; it cleans up only what it made itself
         from vistac_sim.generate.run import generate as run_generation
 
-        existed = out.exists()
-        try:
-            manifest = run_generation(cfg, out, workers=workers, resume=resume,
-                                      progress=progress, engine=engine)
-        except BaseException:
-            drop_unstarted_run(out, existed)
-            raise
+        manifest = run_generation(cfg, out, workers=workers, resume=resume, progress=progress,
+                                  engine=engine)
     finally:
         stop_fork_server()
     return Dataset(out, already_complete=bool(manifest.get("already_complete")))
@@ -155,7 +150,7 @@ def train(cfg: TrainCfg, data: str | Path, out: str | Path, *, resume: bool = Fa
         UserError: an incomplete dataset, an unusable `out`, `--init` not a finished run,
             a diverged training (`TrainingDiverged`).
     """
-    from vistac_learn.train.command import check_paths
+    from vistac_learn.train.config import check_paths
     from vistac_learn.train.job import JobCfg, run_job
 
     cfg = dataclasses.replace(cfg, data=str(data), out=str(out))
@@ -187,9 +182,7 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
     from vistac.config import ConfigError
     from vistac.dataset import read_manifest
     from vistac.dataset.files import check_out_dir
-    from vistac_learn.data.samples import RotationCfg
     from vistac_learn.evaluate.command import EvaluateCfg
-    from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 
     if isinstance(target, EvaluateCfg):
         if options:
@@ -207,6 +200,15 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
         except UserError as exc:
             raise UserError(f"--data {exc}") from None
     out = check_out_dir(cfg.out_dir)
+    with hold(out, "evaluate"):
+        res = _score(cfg, out, progress)
+    return Evaluation(out, res)
+
+
+def _score(cfg: EvaluateCfg, out: Path, progress: bool) -> dict:
+    from vistac_learn.data.samples import RotationCfg
+    from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
+
     if cfg.baseline:
         res = evaluate_baseline(cfg.data, out, cfg.split, cfg.finger,
                                 RotationCfg(cfg.rotations, cfg.n_rotations), cfg.tta,
@@ -217,7 +219,7 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
                            not cfg.no_plots, cfg.device, progress=progress,
                            cross_dataset=cfg.cross_dataset, max_missing_pct=cfg.max_missing_pct,
                            references=not cfg.no_references)
-    return Evaluation(out, res)
+    return res
 
 
 def tune(base: TrainCfg, data: str | Path, out: str | Path, *, trials: int = 20,
@@ -244,13 +246,13 @@ def tune(base: TrainCfg, data: str | Path, out: str | Path, *, trials: int = 20,
         The finished trials (rows of ``trials.csv``) and the best one.
 
     Raises:
-        UserError: bad settings, a tuned option also fixed in `base`, a folder holding another
-            tuning.
+        UserError: bad settings, a folder holding another tuning or held by another process,
+            no trial that succeeded. (A tuned option that `base` also sets is simply tuned: the
+            CLI refuses such an option, Python callers set `space` instead.)
     """
     from vistac.engine import EngineCfg, preflight
-    from vistac_learn.train.command import check_paths
-    from vistac_learn.train.config import check_data
-    from vistac_learn.tune.driver import TuneCfg, check_folder, no_success, run_tune
+    from vistac_learn.train.config import check_data, check_paths
+    from vistac_learn.tune.driver import TuneCfg, check_folder, no_success, run_tune_held
     from vistac_learn.tune.engines import TRIAL_OPTIONS, TrialCfg, tune_runner
     from vistac_learn.tune.space import load_space
 
@@ -269,17 +271,19 @@ def tune(base: TrainCfg, data: str | Path, out: str | Path, *, trials: int = 20,
         cfg = TuneCfg(out=str(out), trials=trials, seed=seed)
     except UserError as exc:
         raise UserError(f"--{str(exc).replace('seed:', 'tune-seed:')}") from None
-    check_folder(cfg, base, search, resume)
-    _notes(check_data(base, progress=progress), progress)
-    preflight(engine)
-    with tune_runner(engine, base, trial, progress=progress) as runner:
-        if on_start is not None:
-            on_start(runner.concurrency)
-        res = run_tune(cfg, base, search, resume=resume, runner=runner, progress=progress)
-    if res.best is None:
-        raise UserError(f"--out {out}: no trial succeeded ({no_success(res.rows)}); nothing is "
-                        "best (see trials.csv); narrow the space (e.g. lower lr bounds with "
-                        "--space) or check the data")
+    with hold(out, "tune"):  # the folder's checks and the tuning under one lock
+        check_folder(cfg, base, search, resume)
+        _notes(check_data(base, progress=progress), progress)
+        preflight(engine)
+        with tune_runner(engine, base, trial, progress=progress) as runner:
+            if on_start is not None:
+                on_start(runner.concurrency)
+            res = run_tune_held(cfg, base, search, resume=resume, runner=runner,
+                                progress=progress)
+        if res.best is None:
+            raise UserError(f"--out {out}: no trial succeeded ({no_success(res.rows)}); nothing is "
+                            "best (see trials.csv); narrow the space (e.g. lower lr bounds with "
+                            "--space) or check the data")
     return Report(Path(out), res.rows, res.best)
 
 

@@ -7,7 +7,6 @@ use (pandas on demand, torch never), so holding one costs nothing. The folders a
 
 from __future__ import annotations
 
-import csv
 import json
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -102,16 +101,25 @@ class Run:
 
     @classmethod
     def open(cls, path: str | Path) -> Run:
-        """The run in folder `path` (trained to at least one checkpoint)."""
-        path = Path(path)
-        config = path / "config.json"
-        if not config.is_file():
-            raise UserError(f"{path}: not a run folder (no config.json)")
-        rows = _read_metrics(path / "metrics.csv")
+        """The run in folder `path` (trained to at least one checkpoint), its files checked.
+
+        Raises:
+            UserError: not a run, no finished epoch, a damaged ``config.json``,
+                ``metrics.csv`` or best checkpoint (one line naming the file).
+        """
+        from vistac_learn.train.checkpoints import load_checkpoint
+        from vistac_learn.train.loop import BEST_KEYS
+        from vistac_learn.train.run_files import read_metrics, read_run_config
+
+        path, fix = Path(path), "train the run again"
+        read_run_config(path, fix)
+        rows = read_metrics(path / "metrics.csv", fix) \
+            if (path / "metrics.csv").is_file() else []
         if not rows:
             raise UserError(f"{path}: the run has not finished an epoch (no metrics.csv rows)")
-        best = _best_epoch(path)
-        fingers = json.loads(config.read_text()).get("fingers") or _fingers(rows)
+        best = int(load_checkpoint(path / "checkpoints" / "best.pt", BEST_KEYS, fix)["epoch"])
+        fingers = [f for f in ("index", "thumb")
+                   if f"val_{f}_angle_to_mean_median_deg" in rows[0]]
         row = next((r for r in rows if int(r["epoch"]) == best), rows[-1])
         objective = sum(row[f"val_{f}_angle_to_mean_median_deg"] for f in fingers) / len(fingers)
         return cls(path, best, float(objective))
@@ -119,12 +127,16 @@ class Run:
     @cached_property
     def config(self) -> dict[str, Any]:
         """The parsed ``config.json``: every setting, the dataset's path and fingerprint."""
-        return json.loads((self.path / "config.json").read_text())
+        from vistac_learn.train.run_files import read_run_config
+
+        return read_run_config(self.path, "train the run again")
 
     @property
     def history(self) -> list[dict[str, float]]:
         """The rows of ``metrics.csv``, one per epoch (training loss, validation metrics)."""
-        return _read_metrics(self.path / "metrics.csv")
+        from vistac_learn.train.run_files import read_metrics
+
+        return read_metrics(self.path / "metrics.csv", "train the run again")
 
 
 @dataclass(frozen=True)
@@ -163,24 +175,3 @@ class Report:
     path: Path
     rows: list[dict[str, Any]] = field(repr=False)
     best: dict[str, Any] | None = None
-
-
-def _read_metrics(path: Path) -> list[dict[str, float]]:
-    if not path.is_file():
-        return []
-    with path.open() as fh:
-        return [{k: float(v) for k, v in r.items() if v != ""} for r in csv.DictReader(fh)]
-
-
-def _best_epoch(run: Path) -> int:
-    import torch
-
-    path = run / "checkpoints" / "best.pt"
-    if not path.is_file():
-        raise UserError(f"{run}: the run has no best checkpoint (checkpoints/best.pt)")
-    ck = torch.load(path, map_location="cpu", weights_only=True)
-    return int(ck["epoch"])
-
-
-def _fingers(rows: list[dict[str, float]]) -> list[str]:
-    return [f for f in ("index", "thumb") if f"val_{f}_angle_to_mean_median_deg" in rows[0]]

@@ -127,11 +127,18 @@ def _evil_checkpoint(run: Path, marker: Path) -> None:
     torch.save(good | {"note": Payload()}, run / "checkpoints" / "best.pt")
 
 
-@pytest.mark.parametrize("command", ["evaluate", "init"])
+@pytest.mark.parametrize("command", ["evaluate", "init", "api"])
 def test_a_checkpoint_carrying_code_is_refused_unrun(command, env, tmp_path, capsys):
     run, marker = tmp_path / "run", tmp_path / "pwned"
     shutil.copytree(env["paths"]["run"], run)
     _evil_checkpoint(run, marker)
+    if command == "api":  # vistac.Run.open reads the best checkpoint too
+        import vistac
+
+        with pytest.raises(UserError, match="best.pt: holds pickled objects"):
+            vistac.Run.open(run)
+        assert not marker.exists()
+        return
     if command == "evaluate":
         argv = EVAL_OK.format(run=run, out=tmp_path / "eval").split()
     else:
@@ -147,3 +154,27 @@ def test_checkpoints_hold_plain_data_only(env):
     for name in ("best.pt", "last.pt"):
         ck = torch.load(Path(env["paths"]["run"]) / "checkpoints" / name, weights_only=True)
         assert isinstance(ck["model"], dict) and isinstance(ck["epoch"], int)
+
+
+def test_a_refused_generate_leaves_the_holders_files_alone(tmp_path):
+    """The clean-up of an unstarted run happens under the lock, never on another's run."""
+    import vistac
+
+    out = tmp_path / "d"
+    (out / ".partial").mkdir(parents=True)
+    (out / ".partial" / "run.json").write_text("{}")
+    (out / "images").mkdir()
+    (out / "images" / "000000.png").write_bytes(b"in the making")
+    with hold(out, "holder"):
+        with pytest.raises(UserError, match="in use by pid"):
+            vistac.generate(vistac.GenerateCfg(n=2), out, workers=1)
+    assert (out / ".partial" / "run.json").exists()
+    assert (out / "images" / "000000.png").read_bytes() == b"in the making"
+
+
+def test_evaluate_refuses_a_held_output_folder(env, tmp_path, capsys):
+    out = tmp_path / "eval"
+    with hold(out, "holder"):
+        assert main(EVAL_OK.format(run=env["paths"]["run"], out=out).split()) == 2
+        _one_error_line(capsys, "in use by pid")
+    assert main(EVAL_OK.format(run=env["paths"]["run"], out=out).split()) == 0

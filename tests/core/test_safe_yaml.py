@@ -35,3 +35,19 @@ def test_recursion_and_deep_nesting_are_one_line_errors():
         load_yaml("[" * 5000 + "]" * 5000, "t.yaml")
     with pytest.raises(UserError, match="cannot parse"):
         load_yaml("x: !!python/object/apply:os.system ['true']\n", "t.yaml")
+
+
+def test_tune_space_files_are_read_safely(tmp_path):
+    """`--space` YAML goes through the same reader: 1e-5 is a number, an alias bomb refused."""
+    from vistac_learn.tune.space import load_space
+
+    good = tmp_path / "space.yaml"
+    good.write_text("params: {lr: {low: 1e-5, high: 1e-2}}\n")
+    lr = next(d for d in load_space(good).dims if d.name == "lr")
+    assert (lr.low, lr.high) == pytest.approx((1e-5, 1e-2))
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text("a: &a [x, x, x, x, x, x, x, x, x, x]\n"
+                    + "".join(f"{c}: &{c} [*{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p}, *{p},"
+                              f" *{p}]\n" for p, c in zip("abcdefgh", "bcdefghi", strict=True)))
+    with pytest.raises(UserError, match="--space"):
+        load_space(bomb)

@@ -29,7 +29,7 @@ from vistac.dataset import DatasetTables
 from vistac.dataset.files import atomic_write_json
 from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.pinch import PinchCfg, dataset_friction, pinch_predictions
-from vistac_learn.metrics.scoring import format_table, score
+from vistac_learn.metrics.scoring import score
 
 CACHE_VERSION = 1  # bump when the pinch baseline's output changes; invalidates cached results
 LABELS = {"noise_floor": "noise floor (clean force)", "pinch": "pinch baseline"}
@@ -104,8 +104,12 @@ def pinch_reference(tables: DatasetTables, rows: np.ndarray, fingers: tuple[str,
     rows = np.asarray(rows, dtype=np.int64)
     cfg = cfg or PinchCfg()
     path = _cache_path(tables, rows, fingers, cfg, Path(cache_dir) if cache_dir else None)
-    if path.exists():
-        return json.loads(path.read_text())
+    try:  # a damaged or foreign cache file is computed again, never trusted
+        cached = json.loads(path.read_text())
+        if isinstance(cached, dict) and isinstance(cached.get("metrics"), dict):
+            return cached
+    except (OSError, ValueError):
+        pass
     t0 = time.perf_counter()
     pred, item_row, _, failures = pinch_predictions(tables, rows, fingers, RotationCfg("none", 1),
                                                     cfg, progress)
@@ -142,9 +146,3 @@ def reference_entries(refs: dict | None, fingers: tuple[str, ...]) -> list[tuple
         return []
     return [(f"{LABELS[k]} ({f})", refs[k]["metrics"][f]) for k in LABELS if k in refs
             for f in fingers if f in refs[k]["metrics"]]
-
-
-def references_table(refs: dict | None, fingers: tuple[str, ...]) -> str:
-    """The references as a markdown table in the study's layout ("" without references)."""
-    entries = reference_entries(refs, fingers)
-    return format_table(entries) if entries else ""

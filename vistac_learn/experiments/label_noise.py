@@ -30,7 +30,15 @@ import pandas as pd
 
 from vistac.config import Config, param
 from vistac.dataset import atomic_write_json, open_dataset, press_row, unit_labels, write_table
-from vistac.dataset.schema import CONFIGS, FINGERS, IMAGES, MANIFEST, PRESSES, clean_force_columns
+from vistac.dataset.schema import (
+    CONFIGS,
+    FINGERS,
+    IMAGES,
+    MANIFEST,
+    MASKS,
+    PRESSES,
+    clean_force_columns,
+)
 from vistac.errors import UserError
 from vistac.folder_lock import hold
 from vistac.noise import relative_force_noise
@@ -96,9 +104,10 @@ def derive_dataset(source: Path, folder: Path, presses: pd.DataFrame, note: dict
         return
     folder.mkdir(parents=True, exist_ok=True)
     shutil.copyfile(source / CONFIGS, folder / CONFIGS)
-    link = folder / IMAGES
-    if not link.is_symlink():
-        os.symlink((source / IMAGES).resolve(), link, target_is_directory=True)
+    for name in (IMAGES, MASKS):  # masks/ too where the source has them (its manifest says so)
+        link = folder / name
+        if (source / name).is_dir() and not link.is_symlink():
+            os.symlink((source / name).resolve(), link, target_is_directory=True)
     write_table(folder / PRESSES, presses)
     atomic_write_json(folder / "label_noise.json", note)
     shutil.copyfile(source / MANIFEST, folder / MANIFEST)

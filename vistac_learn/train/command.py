@@ -7,9 +7,6 @@ import dataclasses
 from pathlib import Path
 
 from vistac.config import HelpFormatter, add_options, apply, flag_labels, option_values
-from vistac.dataset import read_manifest
-from vistac.dataset.files import check_out_dir
-from vistac.errors import UserError
 from vistac_learn.train.config import PROTOCOLS, STUDY, TrainCfg, protocol_cfg
 
 OPTIONS = tuple(f.name for f in dataclasses.fields(TrainCfg)
@@ -44,24 +41,6 @@ def options_cfg(args: argparse.Namespace) -> TrainCfg:
     given = {k: v for k, v in option_values(args, TrainCfg, OPTIONS).items() if v is not None}
     base = protocol_cfg(args.protocol, args.data, args.out)
     return apply(base, given, labels=flag_labels(TrainCfg, OPTIONS))
-
-
-def check_paths(cfg: TrainCfg) -> None:
-    """Before any work: the dataset is complete, --out and --cache-dir can be written, --init
-    is a finished run.
-
-    Raises:
-        UserError: naming the option.
-    """
-    try:
-        read_manifest(Path(cfg.data))
-    except UserError as exc:
-        raise UserError(f"--data {exc}") from None
-    check_out_dir(cfg.out)
-    if cfg.cache_dir is not None:
-        check_out_dir(cfg.cache_dir, "--cache-dir")
-    if cfg.init is not None and not (Path(cfg.init) / "checkpoints" / "best.pt").is_file():
-        raise UserError(f"--init {cfg.init}: not a finished run (no checkpoints/best.pt)")
 
 
 def _handler(args: argparse.Namespace) -> int:

@@ -18,12 +18,14 @@ from __future__ import annotations
 import dataclasses
 import functools
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import torch
 
 from vistac.config import Config, param
-from vistac.dataset import DatasetTables
+from vistac.dataset import DatasetTables, read_manifest
+from vistac.dataset.files import check_out_dir
 from vistac.errors import UserError
 from vistac_learn.data.fingertips import FingertipTable
 from vistac_learn.data.samples import (
@@ -256,6 +258,24 @@ def run_coverage(cfg: TrainCfg, tables: DatasetTables, tips: FingertipTable | No
     for c in out:
         c.check(cfg.max_missing_pct)
     return out
+
+
+def check_paths(cfg: TrainCfg) -> None:
+    """Before any work: the dataset is complete, --out and --cache-dir can be written, --init
+    is a finished run.
+
+    Raises:
+        UserError: naming the option.
+    """
+    try:
+        read_manifest(Path(cfg.data))
+    except UserError as exc:
+        raise UserError(f"--data {exc}") from None
+    check_out_dir(cfg.out)
+    if cfg.cache_dir is not None:
+        check_out_dir(cfg.cache_dir, "--cache-dir")
+    if cfg.init is not None and not (Path(cfg.init) / "checkpoints" / "best.pt").is_file():
+        raise UserError(f"--init {cfg.init}: not a finished run (no checkpoints/best.pt)")
 
 
 def check_data(cfg: TrainCfg, progress: bool = False) -> list[str]:

@@ -253,11 +253,12 @@ def run_tune(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool = False
             a folder that another process holds.
     """
     with hold(cfg.out, "tune"):
-        return _run_tune(cfg, base, space, resume, runner, progress)
+        return run_tune_held(cfg, base, space, resume, runner, progress)
 
 
-def _run_tune(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool, runner: Any,
-              progress: bool) -> TuneResult:
+def run_tune_held(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool = False,
+                  runner: Any = None, progress: bool = True) -> TuneResult:
+    """`run_tune` for a caller that holds ``cfg.out``'s lock already (`vistac.folder_lock`)."""
     from vistac_learn.tune.plots import plot_convergence
 
     runner = runner or LocalRunner()

@@ -25,10 +25,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-import yaml
-
 from vistac.config import Config, ConfigError, param, to_dict, type_hints
 from vistac.errors import UserError
+from vistac.safe_yaml import load_yaml
 from vistac_learn.train.config import TrainCfg
 
 
@@ -135,8 +134,9 @@ def load_space(path: str | Path | None, base: SpaceCfg = DEFAULT_SPACE) -> Space
     path = Path(path)
     try:
         text = path.read_text()
-        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:
+        data = json.loads(text) if path.suffix == ".json" \
+            else load_yaml(text, f"--space {path}")  # bounded aliases, 1e-5 is a number
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise UserError(f"--space {path}: cannot read ({str(exc).splitlines()[0]})") from None
     data = data or {}
     if not isinstance(data, dict) or set(data) - {"params", "init_points"}:

@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import sys
-from pathlib import Path
 
 from vistac.config import (
     HelpFormatter,
@@ -17,7 +14,6 @@ from vistac.config import (
     option_values,
 )
 from vistac.engine import ENGINE_OPTIONS, WRITES_OPTIONS, EngineCfg
-from vistac.errors import UserError
 from vistac_sim.effects.presets import PRESETS
 from vistac_sim.generate.config import GenerateCfg
 
@@ -78,35 +74,6 @@ def generate_cfg_from_args(args: argparse.Namespace) -> GenerateCfg:
     cfg = apply(base, option_values(args, GenerateCfg, OPTIONS),
                 labels=flag_labels(GenerateCfg, OPTIONS))
     return cfg
-
-
-def check_workers(workers: int, option: str = "--workers") -> int:
-    """`workers` checked (0: all cores) and capped at the cores, with a note when capped.
-
-    Raises:
-        UserError: a negative number.
-    """
-    cores = os.cpu_count() or 1
-    if workers < 0:
-        raise UserError(f"{option}: must be >= 0 (0: all {cores} cores), got {workers}")
-    if workers > cores:
-        print(f"note: {option} {workers} capped at the {cores} cores", file=sys.stderr)
-    return min(workers or cores, cores)
-
-
-def drop_unstarted_run(out: Path, existed: bool) -> None:
-    """After a failed run: remove what it made if it committed no shard (nothing to resume)."""
-    import shutil
-
-    from vistac.dataset.schema import IMAGES, MANIFEST, MASKS, PARTIAL
-    from vistac_sim.generate.shards import finished_chunks
-
-    if (out / MANIFEST).exists() or not (out / PARTIAL).is_dir() or finished_chunks(out):
-        return
-    for name in (PARTIAL, IMAGES, MASKS, "recordings"):
-        shutil.rmtree(out / name, ignore_errors=True)
-    if not existed and out.is_dir() and not any(out.iterdir()):
-        out.rmdir()
 
 
 def _generate(args: argparse.Namespace) -> int:

@@ -8,8 +8,12 @@ imports (MuJoCo, meshes, renderer: about two seconds) run beside the driver's.
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
+import sys
 from contextlib import contextmanager
 from functools import partial
+
+from vistac.errors import UserError
 
 WORKER_MODULE = "vistac_sim.generate.worker"
 # What the fork server imports for its workers: the worker module, and pandas, which pyarrow
@@ -93,3 +97,17 @@ def _call_worker(name: str, *args):
     from vistac_sim.generate import worker
 
     return getattr(worker, name)(*args)
+
+
+def check_workers(workers: int, option: str = "--workers") -> int:
+    """`workers` checked (0: all cores) and capped at the cores, with a note when capped.
+
+    Raises:
+        UserError: a negative number.
+    """
+    cores = os.cpu_count() or 1
+    if workers < 0:
+        raise UserError(f"{option}: must be >= 0 (0: all {cores} cores), got {workers}")
+    if workers > cores:
+        print(f"note: {option} {workers} capped at the {cores} cores", file=sys.stderr)
+    return min(workers or cores, cores)

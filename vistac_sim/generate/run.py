@@ -13,6 +13,7 @@ not committed their shard.
 from __future__ import annotations
 
 import multiprocessing as mp
+import shutil
 import time
 from collections.abc import Callable, Generator
 from contextlib import closing
@@ -24,7 +25,7 @@ import numpy as np
 from tqdm import tqdm
 
 from vistac.dataset import MANIFEST, files
-from vistac.dataset.schema import MASK_VALUES, MASKS
+from vistac.dataset.schema import IMAGES, MASK_VALUES, MASKS, PARTIAL
 from vistac.engine import EngineCfg, preflight
 from vistac.folder_lock import hold
 from vistac_sim.effects import build_pipeline
@@ -137,6 +138,16 @@ def _run_in_pool(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: lis
         yield from pool.imap_unordered(in_worker("run_task"), plan_tasks(todo, workers))
 
 
+def drop_unstarted_run(out: Path, existed: bool) -> None:
+    """After a failed run: remove what it made if it committed no shard (nothing to resume)."""
+    if (out / MANIFEST).exists() or not (out / PARTIAL).is_dir() or shards.finished_chunks(out):
+        return
+    for name in (PARTIAL, IMAGES, MASKS, "recordings"):
+        shutil.rmtree(out / name, ignore_errors=True)
+    if not existed and out.is_dir() and not any(out.iterdir()):
+        out.rmdir()
+
+
 # --------------------------------------------------------------------------------- the run
 def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool = False,
              progress: bool = True, engine: EngineCfg | None = None) -> dict:
@@ -161,9 +172,15 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
             usable object, an `out` that cannot be used or that another process holds, or
             (resume) damaged state in it.
     """
+    out = Path(out)
     try:
         with hold(out, "generate"):
-            return _generate(cfg, Path(out), workers, resume, progress, engine or EngineCfg())
+            existed = out.exists()
+            try:
+                return _generate(cfg, out, workers, resume, progress, engine or EngineCfg())
+            except BaseException:  # inside the lock: never another process's run
+                drop_unstarted_run(out, existed)
+                raise
     finally:
         stop_fork_server()
 
