@@ -19,7 +19,7 @@ def encode_png(rgb: np.ndarray, level: int = 1, grainy: bool = False) -> bytes:
       colours, whose long repeats zlib finds (about 50x smaller);
     - `grainy`: the "up" row filter (each byte minus the one above it) and zlib's run-length
       strategy at `level`. For frames with sensor noise and JPEG (the `photo` preset), where
-      zlib finds few repeats: a third less CPU time than flat and a fifth fewer bytes
+      zlib finds few repeats: about 30 % less CPU time than flat and 20 % fewer bytes
       (`benchmarks/png_encoding.py`).
 
     Written with zlib directly: about twice as fast as OpenCV's encoder on these images.
