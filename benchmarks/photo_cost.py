@@ -10,7 +10,7 @@
 3. memory: the peak resident set of a fresh `vistac generate` process (one worker), clean and
    photo, at `--n` and at 4 x `--n` configurations (flat: about the same peak).
 
-    .venv/bin/python benchmarks/photo_cost.py --n 40 --rounds 3
+    .venv/bin/python benchmarks/photo_cost.py --n 40 --rounds 4
 """
 
 from __future__ import annotations
