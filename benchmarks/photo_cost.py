@@ -10,12 +10,13 @@
 3. memory: the peak resident set of a fresh `vistac generate` process (one worker), clean and
    photo, at `--n` and at 4 x `--n` configurations (flat: about the same peak).
 
-    .venv/bin/python benchmarks/photo_cost.py --n 40 --rounds 3
+    .venv/bin/python benchmarks/photo_cost.py --n 40 --rounds 4
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import shutil
 import statistics
@@ -26,31 +27,27 @@ import time
 from pathlib import Path
 
 from vistac_sim.effects import build_pipeline
-from vistac_sim.effects.presets import resolve
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.configuration import make_configuration
 from vistac_sim.generate.run import generate, object_specs
 from vistac_sim.generate.scenes import SceneCache
+from vistac_sim.render.config import RenderCfg
 
 RESULTS = Path(__file__).parent / "results"
 
 
-def config(preset: str, n: int, seed: int, masks: bool = False) -> GenerateCfg:
-    c = GenerateCfg(n=n, seed=seed)
-    c.effects, c.recording = resolve(preset)
-    c.render.masks = masks
-    return c
+def config(preset: str, n: int, seed: int, masks: bool = False, **off: None) -> GenerateCfg:
+    """The preset's config; `off` names effects switched off (``shadows=None``)."""
+    c = GenerateCfg.from_preset(preset, n=n, seed=seed, render=RenderCfg(masks=masks))
+    return dataclasses.replace(c, effects=dataclasses.replace(c.effects, **off)) if off else c
 
 
 def paired(n: int, seed: int, rounds: int) -> dict[str, dict[str, float]]:
     """Summed CPU and wall seconds of `make_configuration` per variant over n x rounds: clean,
     photo, and photo without its costliest parts (no shadows; no shadows and no JPEG)."""
     cfgs = {p: config(p, n, seed) for p in ("clean", "photo")}
-    cfgs["photo, no shadows"] = config("photo", n, seed)
-    cfgs["photo, no shadows"].effects.shadows = None
-    cfgs["photo, no shadows, no JPEG"] = config("photo", n, seed)
-    cfgs["photo, no shadows, no JPEG"].effects.shadows = None
-    cfgs["photo, no shadows, no JPEG"].effects.jpeg = None
+    cfgs["photo, no shadows"] = config("photo", n, seed, shadows=None)
+    cfgs["photo, no shadows, no JPEG"] = config("photo", n, seed, shadows=None, jpeg=None)
     specs, _ = object_specs(cfgs["clean"], seed)
     scenes = {p: SceneCache(specs, c, size=64) for p, c in cfgs.items()}
     pipes = {p: build_pipeline(c.effects) for p, c in cfgs.items()}

@@ -276,6 +276,18 @@ def test_jpeg_quality_range_and_artefacts():
     assert 0 < np.abs(out - img).mean() < 20
 
 
+def test_jpeg_round_trip_keeps_the_channel_order():
+    """The finish swaps channels with OpenCV: the same pixels as a numpy-reversed round trip, and
+    a red patch stays red (JPEG's chroma is computed on the right channels)."""
+    img = np.zeros((48, 48, 3), np.uint8)
+    img[8:40, 8:40] = (230, 40, 10)
+    out = apply_finish(img, Finish(jpeg=60))
+    ok, buf = cv2.imencode(".jpg", img[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, 60])
+    np.testing.assert_array_equal(out, cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1])
+    r, g, b = out[24, 24].astype(int)
+    assert r > 200 and b < 40 and out.flags["C_CONTIGUOUS"]
+
+
 # -------------------------------------------------------------------- drawn fingers
 def test_drawn_fingers_replace_the_rendered_ones_and_boxes_hold_them(photo):
     cfg, scenes = photo

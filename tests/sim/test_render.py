@@ -80,6 +80,31 @@ def test_png_encoding_round_trips_exactly():
     assert encode_png(rgb) == encode_png(rgb.copy())
 
 
+@pytest.mark.parametrize("shape", [(31, 17, 3), (23, 40)])
+def test_grainy_png_encoding_round_trips_exactly_through_imread(tmp_path, shape):
+    import cv2
+
+    from vistac_sim.render.png import encode_png
+
+    rng = np.random.default_rng(1)
+    img = np.clip(rng.normal(128, 60, shape), 0, 255).astype(np.uint8)  # wraps when filtered
+    grainy = encode_png(img, grainy=True)
+    assert grainy != encode_png(img)  # a different encoding ...
+    path = tmp_path / "grainy.png"
+    path.write_bytes(grainy)
+    back = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    np.testing.assert_array_equal(back[..., ::-1] if img.ndim == 3 else back, img)  # same pixels
+    assert grainy == encode_png(img.copy(), grainy=True)
+
+
+def test_grainy_png_encoding_is_chosen_for_photo_frames_only():
+    from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.generate.configuration import grainy_frames
+
+    assert grainy_frames(GenerateCfg.from_preset("photo"))
+    assert not any(grainy_frames(GenerateCfg.from_preset(p)) for p in ("clean", "lab", "harsh"))
+
+
 def test_clipped_box_matches_shapely():
     import shapely
     from shapely.geometry import LineString

@@ -104,7 +104,7 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
         rgb, view_cols = scene.view.render(scene.press.data), {}
         if cfg.render.masks:
             mask = render_mask(scene.view, scene.press.data)
-    png = encode_png(rgb)
+    png = encode_png(rgb, grainy=grainy_frames(cfg))
     clean = res.force_sensor
     fallbacks = 0
     if pipeline.changes_physics:
@@ -137,6 +137,11 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
         recording=recording,
         mask=encode_png(mask) if mask is not None else None,
     )
+
+
+def grainy_frames(cfg: GenerateCfg) -> bool:
+    """Whether the config's images carry sensor noise or JPEG (PNG-encoded as grainy)."""
+    return cfg.effects.sensor_noise is not None or cfg.effects.jpeg is not None
 
 
 def _solve_repeat(scene: ObjectScene, pipeline: Pipeline, grasp: Grasp,

@@ -52,10 +52,11 @@ def apply_finish(rgb: np.ndarray, finish: Finish) -> np.ndarray:
         unit = noise_bank(max(h, w))[r:r + h, c:c + w]
         std = np.sqrt(read * read + shot * np.arange(256, dtype=np.float32)).astype(np.float32)
         sigma = cv2.LUT(out, np.repeat(std[:, None], 3, axis=1).reshape(256, 1, 3))
-        out = cv2.add(out, cv2.multiply(np.ascontiguousarray(unit), sigma), dtype=cv2.CV_8U)
-    if finish.jpeg:
-        ok, buf = cv2.imencode(".jpg", out[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, finish.jpeg])
-        out = cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1]
+        out = cv2.add(out, cv2.multiply(unit, sigma), dtype=cv2.CV_8U)  # unit: a view, no copy
+    if finish.jpeg:  # channels swapped by OpenCV itself (a numpy [..., ::-1] view costs a copy)
+        bgr = cv2.cvtColor(out, cv2.COLOR_RGB2BGR)
+        ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, finish.jpeg])
+        out = cv2.imdecode(buf, cv2.IMREAD_COLOR_RGB)
     return np.ascontiguousarray(out)
 
 
