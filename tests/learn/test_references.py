@@ -222,3 +222,14 @@ def test_demo_report_shows_the_references(tiny_run, tmp_path):
     for row in ("| geometric baseline (index) |", "| noise floor (clean force) (thumb) |",
                 "| pinch baseline (index) |", "| smallconv, edge-crop (thumb) |"):
         assert text.count(row) == 1, row
+
+
+def test_the_pinch_cache_follows_the_labels(tmp_path):
+    t = open_dataset(make_dataset(tmp_path / "ds", n=4, repeats=2, size=64))
+    rows = t.rows(None)
+    first = refs_mod.pinch_reference(t, rows, ("index",), cache_dir=tmp_path / "cache")
+    assert len(list((tmp_path / "cache").glob("pinch-*.json"))) == 1
+    t.cones["index"][0] = -t.cones["index"][0]  # other labels, same images and configurations
+    second = refs_mod.pinch_reference(t, rows, ("index",), cache_dir=tmp_path / "cache")
+    assert len(list((tmp_path / "cache").glob("pinch-*.json"))) == 2
+    assert second["metrics"] != first["metrics"]
