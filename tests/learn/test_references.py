@@ -15,6 +15,7 @@ from learn_fixtures import INDEX_RGB, TABLE, THUMB_RGB, make_dataset
 from vistac.cli import main
 from vistac.dataset import open_dataset
 from vistac_learn.data.samples import RotationCfg
+from vistac_learn.data.variants import rotation_matrix
 from vistac_learn.evaluate import references as refs_mod
 from vistac_learn.evaluate.geometric import sensor_direction
 from vistac_learn.evaluate.pinch import clamp_to_cone, predict_image
@@ -222,3 +223,28 @@ def test_demo_report_shows_the_references(tiny_run, tmp_path):
     for row in ("| geometric baseline (index) |", "| noise floor (clean force) (thumb) |",
                 "| pinch baseline (index) |", "| smallconv, edge-crop (thumb) |"):
         assert text.count(row) == 1, row
+
+
+def test_the_pinch_cache_follows_the_labels(tmp_path):
+    t = open_dataset(make_dataset(tmp_path / "ds", n=4, repeats=2, size=64))
+    rows = t.rows(None)
+    first = refs_mod.pinch_reference(t, rows, ("index",), cache_dir=tmp_path / "cache")
+    assert len(list((tmp_path / "cache").glob("pinch-*.json"))) == 1
+    t.cones["index"][0] = -t.cones["index"][0]  # other labels, same images and configurations
+    second = refs_mod.pinch_reference(t, rows, ("index",), cache_dir=tmp_path / "cache")
+    assert len(list((tmp_path / "cache").glob("pinch-*.json"))) == 2
+    assert second["metrics"] != first["metrics"]
+
+
+@pytest.mark.parametrize("angle", [25.0, 130.0])
+def test_pinch_label_survives_a_rotated_image(angle):
+    """A rotated image (bilinear: mixed colours along every edge) gives the same sensor-frame
+    label: the frames turn with the image."""
+    img, scene = box_scene(10.0, 6.0, -7.0, 12.0, -9.0)
+    h, w = img.shape[:2]
+    rot = cv2.warpAffine(img, rotation_matrix(angle, w, h), (w, h), flags=cv2.INTER_LINEAR,
+                         borderMode=cv2.BORDER_CONSTANT, borderValue=_rgb255(TABLE))
+    pred, failures = predict_image(rot, COLOURS, ("index", "thumb"), 0.8)
+    assert failures == 0
+    for i, f in enumerate(("index", "thumb")):
+        assert _angle_deg(pred[2 * i:2 * i + 2], expected_label(scene, f, 0.8)) < 1.0, f

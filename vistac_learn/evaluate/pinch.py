@@ -74,7 +74,7 @@ class PinchCfg:
     locator: LocatorCfg = LocatorCfg()
     friction: float | None = None
     reach: float = 1.0
-    finger_margin_px: int = 0
+    finger_margin_px: int = 1
     min_points: int = 6
     nearest_px: float = 0.3
     search_deg: float = 60.0

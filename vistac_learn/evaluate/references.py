@@ -8,8 +8,8 @@ baseline, scored with the same metric function on the same configurations as the
 - **Pinch baseline** (`vistac_learn.evaluate.pinch`): the image-only physics prediction,
   scored on the unrotated images (it reads geometry, so rotating the image changes its input
   only by resampling). It costs tens of milliseconds per image, so its summary is cached in the
-  dataset's ``cache/`` folder, keyed by the dataset's fingerprint, the settings, the rows and
-  the fingers.
+  dataset's ``cache/`` folder, keyed by the dataset's fingerprint, the labels, the settings, the
+  rows and the fingers.
 
 Both need the simulator's clean forces: `has_clean_forces` is False for an ingested (real)
 dataset, and evaluations then skip them.
@@ -78,7 +78,10 @@ def _cache_path(tables: DatasetTables, rows: np.ndarray, fingers: tuple[str, ...
     h.update(json.dumps({"v": CACHE_VERSION, "cfg": dataclasses.asdict(cfg),
                          "fingers": list(fingers)}, sort_keys=True).encode())
     h.update(np.asarray(rows, dtype=np.int64).tobytes())
-    h.update(tables.fingerprint().encode())
+    h.update(tables.fingerprint().encode())  # manifest, configurations and images
+    for f in fingers:  # and the labels it is scored against (not in the fingerprint)
+        for r in rows:
+            h.update(np.ascontiguousarray(tables.cones[f][r], dtype=np.float64).tobytes())
     folder = cache_dir if cache_dir is not None else tables.root / "cache"
     return Path(folder) / f"pinch-{h.hexdigest()[:20]}.json"
 
