@@ -12,6 +12,7 @@ from vistac_learn.data.fingertips import (
     LocatorCfg,
     fingertip_table,
     locate_fingertips,
+    simulator_tips,
 )
 from vistac_learn.data.variants import read_rgb, rotation_matrix
 
@@ -20,13 +21,7 @@ TIP_PX, AXIS_DEG = 2.0, 3.0  # agreed tolerance: the crop is 54 px wide, a degre
 
 def _truth(t, row: int, finger: str) -> tuple[np.ndarray, np.ndarray]:
     """Simulator's tip centre (pixels) and finger axis (image u, v) of a configuration."""
-    c = t.configs.iloc[row]
-    size = read_rgb(t.image_path(row)).shape[0]
-    ppm = c["px_per_m"]
-    tip = np.array([(c[f"tip_{finger}_x"] - c["camera_x"]) * ppm + size / 2,
-                    -(c[f"tip_{finger}_y"] - c["camera_y"]) * ppm + size / 2])
-    axis = np.array([c[f"approach_{finger}_x"], -c[f"approach_{finger}_y"]])
-    return tip, axis / np.linalg.norm(axis)
+    return simulator_tips(t, row, read_rgb(t.image_path(row)).shape[0])[finger]
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> float:
