@@ -12,7 +12,16 @@ from vistac_learn.data.fingertips import (
     LocatorCfg,
     fingertip_table,
     locate_fingertips,
+    located_in,
     simulator_tips,
+)
+from vistac_learn.data.perturb import (
+    PERTURBATIONS,
+    Scene,
+    map_direction,
+    map_points,
+    perturb,
+    segment,
 )
 from vistac_learn.data.variants import read_rgb, rotation_matrix
 
@@ -100,3 +109,51 @@ def test_fingers_are_found_under_image_effects(preset, tmp_path):
     for row in range(len(t.configs)):
         found = locate_fingertips(read_rgb(t.image_path(row)), colours)
         assert all(found[f].ok for f in FINGERS), row
+
+
+@pytest.mark.parametrize("name", ["table", "object", "overlay", "light", "tilt", "camera"])
+def test_fingers_are_found_in_perturbed_images(small_dataset, name):
+    """Photographic tables and objects, restyled overlays, light, tilt, noise/blur/JPEG: every
+    finger of the first images still found within the agreed tolerance of the truth (moved by
+    the perturbation's homography)."""
+    t = open_dataset(small_dataset)
+    colours = {f: t.finger_rgb(f) for f in FINGERS}
+    k = PERTURBATIONS.index(name)
+    for row in range(8):
+        rgb = read_rgb(t.image_path(row))
+        scene = Scene(segment(rgb, colours, t.table_rgb), colours)
+        p = perturb(name, rgb, scene, np.random.default_rng([0, row, k]))
+        found = locate_fingertips(p.rgb, colours)
+        for f in FINGERS:
+            assert found[f].ok, (row, f, found[f].reason)
+            tip, axis = _truth(t, row, f)
+            assert np.hypot(*(found[f].tip - map_points(p.homography, tip[None])[0])) < TIP_PX
+            assert _angle(found[f].axis, map_direction(p.homography, tip, axis)) < AXIS_DEG
+
+
+def test_a_background_of_the_fingers_colour_is_reported():
+    img = np.zeros((96, 96, 3), np.uint8)
+    img[:] = (200, 30, 30)  # a red table
+    cv2.line(img, (0, 20), (50, 50), (0, 255, 0), 12)
+    found = locate_fingertips(img, {"index": (0.0, 0.85, 0.0), "thumb": (0.9, 0.0, 0.0)})
+    assert found["index"].ok
+    assert not found["thumb"].ok and "% of the image" in found["thumb"].reason
+
+
+def test_the_cache_key_follows_the_locator_version(small_dataset, tmp_path, monkeypatch):
+    import vistac_learn.data.fingertips as fingertips
+
+    t = open_dataset(small_dataset)
+    before = fingertips._cache_path(t, LocatorCfg(), tmp_path)
+    monkeypatch.setattr(fingertips, "LOCATOR_VERSION", fingertips.LOCATOR_VERSION + 1)
+    assert fingertips._cache_path(t, LocatorCfg(), tmp_path) != before
+
+
+def test_located_in_serves_given_images(small_dataset):
+    t = open_dataset(small_dataset)
+    rows = np.array([1, 3])
+    imgs = [read_rgb(t.image_path(r)) for r in rows]
+    table = located_in(t, rows, imgs)
+    assert len(table.frame) == len(t.configs)
+    assert table.get(1, "index").ok and table.get(3, "thumb").ok
+    assert not table.get(0, "index").ok and table.failures(np.array([0, 1, 2]), "thumb") == 2

@@ -10,10 +10,11 @@ Steps, all whole-array OpenCV / NumPy:
    lies in a narrow band round that hue with at least a share of its saturation and half of its
    chroma (max - min channel, linear in how much of the pixel the overlay covers, so the outline
    stays put under blur). Hue and saturation are ratios of the channels: shading, exposure and
-   a coloured light barely move them. Opened with a 3 x 3 kernel; the largest connected blob,
-   holes filled; a blob too small, covering a large part of the image, or not filling its
-   bounding rectangle like a capsule is rejected with its reason (the next candidate hue is
-   tried first).
+   a coloured light barely move them. Opened with a 7 px disc (thinner stripes and specks of the
+   colour go, a finger's wider rounded end stays); the largest connected blob, closed with
+   the same disc and its holes filled (pixels lost to noise or glare). A blob too small,
+   covering a large part of the image, or not filling its bounding rectangle like a capsule is
+   rejected with its reason (the next candidate hue is tried first).
 2. **Axis.** A line fitted (least squares) through the ridge of the mask's distance transform,
    the pixels at least `ridge_frac` of the finger's radius inside its outline: the finger's centre
    line. Unlike a PCA of the whole blob it is not tilted when the image border clips the finger
@@ -23,11 +24,11 @@ Steps, all whole-array OpenCV / NumPy:
    otherwise the tip is the end clearly nearer the other finger (the fingers face each other
    across the object); otherwise the end with more object ahead of it (pixels that are neither
    finger nor table, the table colour being the median of the border pixels).
-4. **Tip centre.** r behind the tip end along the axis: the centre of the rounded end's circle,
+4. **Tip centre.** r behind the tip end (the extreme pixel centre, `end_px`) along the axis: the centre of the rounded end's circle,
    i.e. the simulator's fingertip position. The axis points from the back of the finger to the tip.
 
 Measured (`benchmarks/locator_robustness.py`, docs/robustness.md): on clean images every finger
-found, tip centre median 0.85 px, axis median 0.12 deg, all within 2 px / 3 deg; on images
+found, tip centre median 0.73 px, axis median 0.12 deg, all within 2 px / 3 deg; on images
 perturbed toward photographs see the benchmark's table.
 """
 
@@ -70,12 +71,18 @@ class LocatorCfg(Config):
     max_area_frac: float = param(0.25, gt=0, le=1, help="a blob of the finger's colour larger "
                                  "than this fraction of the image is not a finger")
     min_area_px: int = param(40, ge=1, help="fewest pixels of a finger that count as found")
+    open_px: int = param(7, ge=1, le=31, help="side of the disc that opens the colour mask "
+                         "(stripes and specks of the finger's colour thinner than it go; a "
+                         "finger's rounded end, wider, stays as it is)")
     min_fill: float = param(0.55, ge=0, le=1, help="least share of its bounding rectangle a "
                             "finger's blob fills (a capsule fills 0.8 or more)")
     ridge_frac: float = param(0.6, gt=0, lt=1, help="centre-line pixels: distance to the "
                               "outline >= ridge_frac * radius")
     facing: float = param(0.85, gt=0, lt=1, help="the tip is the end nearer the other finger "
                           "when its distance is below `facing` times the other end's")
+    end_px: float = param(0.0, ge=-2, le=2, help="a finger's end lies this far beyond its "
+                          "extreme pixel centre (0: measured on clean renders, where +0.5 put "
+                          "the tip 0.4-0.6 px ahead of the simulator's)")
     probe: float = param(1.5, gt=0, help="radius of the look-ahead disc, in finger radii")
     object_tol: float = param(30.0, gt=0, help="RGB distance (0-255) from the table colour "
                               "above which a pixel is object")
@@ -227,7 +234,7 @@ def explained_finger_masks(rgb: np.ndarray, colours: dict[str, tuple], cfg: Loca
     filled) is finger-like (`_finger_like`) wins.
     """
     hsv = to_hsv(rgb)
-    kernel = np.ones((3, 3), np.uint8)
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (cfg.open_px, cfg.open_px))
     masks, why = {}, {}
     for f, c in colours.items():
         cands, reason = colour_masks(hsv, c, cfg)
@@ -235,7 +242,9 @@ def explained_finger_masks(rgb: np.ndarray, colours: dict[str, tuple], cfg: Loca
         first = ""
         for m in cands:
             m = cv2.morphologyEx(m.astype(np.uint8), cv2.MORPH_OPEN, kernel) > 0
-            blob = _fill_holes(_largest_blob(m))
+            blob = _largest_blob(m)
+            blob = _fill_holes(blob | (cv2.morphologyEx(blob.astype(np.uint8), cv2.MORPH_CLOSE,
+                                                        kernel) > 0))
             bad = _finger_like(blob, cfg)
             if not bad:
                 masks[f], why[f] = blob, ""
@@ -303,7 +312,7 @@ def locate_finger(mask: np.ndarray, obj: np.ndarray, other: np.ndarray | None,
     s = rel @ d
     body = np.abs(rel @ np.array([-d[1], d[0]])) <= 1.2 * r + 1.0  # off-axis blobs left out
     s = s[body]
-    ends = (c + (s.min() - 0.5) * d, c + (s.max() + 0.5) * d)
+    ends = (c + (s.min() - cfg.end_px) * d, c + (s.max() + cfg.end_px) * d)
     dirs = (-d, d)
     inside = [not (e[0] < 1.5 or e[1] < 1.5 or e[0] > w - 2.5 or e[1] > h - 2.5) for e in ends]
     near = [np.hypot(*(e - other)) for e in ends] if other is not None else None
