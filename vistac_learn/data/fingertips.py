@@ -25,7 +25,8 @@ Steps, all whole-array OpenCV / NumPy:
    across the object); otherwise the end with more object ahead of it (pixels that are neither
    finger nor table, the table colour being the median of the border pixels).
 4. **Tip centre.** r behind the tip end (the extreme pixel centre, `end_px`) along the axis:
-   the centre of the rounded end's circle, i.e. the simulator's fingertip position. The axis points from the back of the finger to the tip.
+   the centre of the rounded end's circle, i.e. the simulator's fingertip position. The axis
+   points from the back of the finger to the tip.
 
 Measured (`benchmarks/locator_robustness.py`, docs/robustness.md): on clean images every finger
 found, tip centre median 0.73 px, axis median 0.12 deg, all within 2 px / 3 deg; on images
