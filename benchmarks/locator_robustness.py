@@ -103,6 +103,30 @@ def measure(data: Path, n: int, seed: int, names: tuple[str, ...], cfg: LocatorC
     return {"n_images": int(len(rows)), "results": out}
 
 
+def grid(data: Path, n: int, seed: int, path: Path) -> None:
+    """A JPEG of `n` images: clean, then each perturbation (as the benchmark draws them)."""
+    import cv2
+
+    t = open_dataset(data)
+    colours = {f: t.finger_rgb(f) for f in FINGERS}
+    rows = np.random.default_rng(seed).permutation(len(t.configs))[:n]
+    lines = []
+    for row in rows:
+        rgb = read_rgb(t.image_path(int(row)))
+        scene = Scene(segment(rgb, colours, t.table_rgb), colours)
+        tiles = [rgb] + [perturb(name, rgb, scene, np.random.default_rng([seed, int(row), k])).rgb
+                         for k, name in enumerate(("clean", *PERTURBATIONS)) if k > 0]
+        lines.append(np.concatenate(tiles, axis=1))
+    img = np.concatenate(lines, axis=0)
+    head = np.full((22, img.shape[1], 3), 255, np.uint8)
+    w = rgb.shape[1]
+    for k, name in enumerate(("clean", *PERTURBATIONS)):
+        cv2.putText(head, name, (k * w + 6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1,
+                    cv2.LINE_AA)
+    cv2.imwrite(str(path), np.concatenate([head, img], axis=0)[..., ::-1],
+                [cv2.IMWRITE_JPEG_QUALITY, 90])
+
+
 def markdown(res: dict) -> str:
     """The table: one row per perturbation and finger."""
     head = ["perturbation", "finger", "found %", "within 2 px / 3 deg %", "tip median px",
@@ -132,9 +156,16 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=300, help="images (a seeded sample)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--name", default="locator_robustness", help="results file name")
+    ap.add_argument("--grid", type=int, default=4, help="images in <out>/perturbations.jpg")
+    ap.add_argument("--grid-only", action="store_true", help="write the grid, measure nothing")
     a = ap.parse_args()
     data = a.data or ensure_dataset(a.out / "data" / "d1000", "--n", "1000", "--noise", "0.05",
                                     "--seed", "21", "--split-by", "object")
+    a.out.mkdir(parents=True, exist_ok=True)
+    if a.grid:
+        grid(data, a.grid, a.seed, a.out / "perturbations.jpg")
+    if a.grid_only:
+        return
     names = ("clean", *PERTURBATIONS)
     t0 = time.perf_counter()
     res = measure(data, a.n, a.seed, names, LocatorCfg())
