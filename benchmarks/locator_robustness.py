@@ -103,6 +103,36 @@ def measure(data: Path, n: int, seed: int, names: tuple[str, ...], cfg: LocatorC
     return {"n_images": int(len(rows)), "results": out}
 
 
+def speed(data: Path, n: int, rev: str) -> dict:
+    """Milliseconds per clean image of this locator and of the one at git revision `rev`,
+    timed interleaved (image by image) so that a shared machine's load hits both alike."""
+    import importlib.util
+    import subprocess
+    import tempfile
+
+    src = subprocess.run(["git", "show", f"{rev}:vistac_learn/data/fingertips.py"],
+                         capture_output=True, text=True, check=True,
+                         cwd=Path(__file__).resolve().parent).stdout
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "fingertips_before.py"
+        path.write_text(src)
+        spec = importlib.util.spec_from_file_location("fingertips_before", path)
+        before = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(before)
+    t = open_dataset(data)
+    colours = {f: t.finger_rgb(f) for f in FINGERS}
+    imgs = [read_rgb(t.image_path(r)) for r in range(min(n, len(t.configs)))]
+    secs = {"before": 0.0, "now": 0.0}
+    for _ in range(2):
+        for img in imgs:
+            for key, fn in (("before", before.locate_fingertips), ("now", locate_fingertips)):
+                t0 = time.perf_counter()
+                fn(img, colours)
+                secs[key] += time.perf_counter() - t0
+    return {"rev": rev, "n_images": len(imgs),
+            **{f"{k}_ms_per_image": 1000 * v / (2 * len(imgs)) for k, v in secs.items()}}
+
+
 def grid(data: Path, n: int, seed: int, path: Path) -> None:
     """A JPEG of `n` images: clean, then each perturbation (as the benchmark draws them)."""
     import cv2
@@ -156,6 +186,8 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=300, help="images (a seeded sample)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--name", default="locator_robustness", help="results file name")
+    ap.add_argument("--speed-rev", default="47798a8", help="git revision whose locator is "
+                    "timed beside this one on clean images ('' to skip)")
     ap.add_argument("--grid", type=int, default=4, help="images in <out>/perturbations.jpg")
     ap.add_argument("--grid-only", action="store_true", help="write the grid, measure nothing")
     a = ap.parse_args()
@@ -169,12 +201,19 @@ def main() -> None:
     names = ("clean", *PERTURBATIONS)
     t0 = time.perf_counter()
     res = measure(data, a.n, a.seed, names, LocatorCfg())
+    if a.speed_rev:
+        res["speed"] = speed(data, 100, a.speed_rev)
     res |= {"locator_version": LOCATOR_VERSION, "data": str(data), "seed": a.seed,
             "wall_s": time.perf_counter() - t0, "machine": machine(),
             "tolerance": {"tip_px": TIP_PX, "axis_deg": AXIS_DEG}}
     md = (f"Fingertip locator v{LOCATOR_VERSION} on {res['n_images']} images of {data} "
           f"(x2 fingers), clean and perturbed (seed {a.seed}); shared 2-core machine, times "
           "are indicative.\n\n" + markdown(res))
+    if "speed" in res:
+        sp = res["speed"]
+        md += (f"\n\nSpeed on {sp['n_images']} clean images, timed interleaved: "
+               f"{sp['now_ms_per_image']:.1f} ms per image now, "
+               f"{sp['before_ms_per_image']:.1f} ms with the locator of {sp['rev']}.")
     save(a.out, a.name, res, md)
 
 

@@ -35,8 +35,10 @@ perturbed toward photographs see the benchmark's table.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -187,13 +189,13 @@ def _fill_holes(mask: np.ndarray) -> np.ndarray:
     """The mask with its enclosed holes filled (specks of noise or glare inside the overlay)."""
     m = mask.astype(np.uint8)
     n, labels, stats, _ = cv2.connectedComponentsWithStats(1 - m, connectivity=4)
+    if n <= 2:
+        return mask
     h, w = m.shape
-    out = mask.copy()
-    for k in range(1, n):
-        x, y, bw, bh = stats[k, :4]
-        if x > 0 and y > 0 and x + bw < w and y + bh < h:  # not touching the border: a hole
-            out[labels == k] = True
-    return out
+    x, y, bw, bh = (stats[:, i] for i in range(4))
+    hole = (x > 0) & (y > 0) & (x + bw < w) & (y + bh < h)  # not touching the border
+    hole[0] = False
+    return mask | hole[labels]
 
 
 def _finger_like(blob: np.ndarray, cfg: LocatorCfg) -> str:
@@ -283,13 +285,15 @@ def _object_ahead(obj: np.ndarray, end: np.ndarray, a: np.ndarray, r: float, pro
     return float(obj[y0:y1, x0:x1][disc].mean()) if disc.any() else 0.0
 
 
-def locate_finger(mask: np.ndarray, obj: np.ndarray, other: np.ndarray | None,
+def locate_finger(mask: np.ndarray, obj: np.ndarray | Callable[[], np.ndarray],
+                  other: np.ndarray | None,
                   cfg: LocatorCfg) -> Fingertip:
     """Tip, axis and radius of one finger's mask.
 
     Args:
         mask: The finger's pixels.
-        obj: Object pixels (`object_mask`).
+        obj: Object pixels (`object_mask`), or a function making them (called only when
+            the tip is told by the object ahead of it).
         other: Centroid (u, v) of the other finger, or None.
         cfg: Settings.
 
@@ -322,6 +326,7 @@ def locate_finger(mask: np.ndarray, obj: np.ndarray, other: np.ndarray | None,
     elif near is not None and min(near) < cfg.facing * max(near):
         k = int(np.argmin(near))
     else:
+        obj = obj() if callable(obj) else obj
         ahead = [_object_ahead(obj, e, a, r, cfg.probe) for e, a in zip(ends, dirs, strict=True)]
         if abs(ahead[0] - ahead[1]) <= 0.02:
             return Fingertip.missing("cannot tell the tip from the back of the finger (both "
@@ -339,7 +344,11 @@ def locate_fingertips(rgb: np.ndarray, colours: dict[str, tuple],
         raise UserError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
     masks, why = explained_finger_masks(rgb, colours, cfg)
     anyf = np.logical_or.reduce(list(masks.values()))
-    obj = object_mask(rgb, anyf, cfg)
+
+    @functools.cache
+    def obj() -> np.ndarray:
+        return object_mask(rgb, anyf, cfg)
+
     centres = {}
     for f, m in masks.items():
         v, u = np.nonzero(m)
