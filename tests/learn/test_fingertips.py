@@ -10,6 +10,8 @@ from vistac.dataset import FINGERS, open_dataset
 from vistac_learn.data.fingertips import (
     Fingertip,
     LocatorCfg,
+    colour_mask,
+    finger_masks,
     fingertip_table,
     locate_fingertips,
     located_in,
@@ -157,3 +159,15 @@ def test_located_in_serves_given_images(small_dataset):
     assert len(table.frame) == len(t.configs)
     assert table.get(1, "index").ok and table.get(3, "thumb").ok
     assert not table.get(0, "index").ok and table.failures(np.array([0, 1, 2]), "thumb") == 2
+
+
+def test_the_loose_colour_mask_covers_the_finger(small_dataset):
+    t = open_dataset(small_dataset)
+    colours = {f: t.finger_rgb(f) for f in FINGERS}
+    img = read_rgb(t.image_path(0))
+    hsv = cv2.cvtColor(img, cv2.COLOR_RGB2HSV_FULL)
+    masks = finger_masks(img, colours, LocatorCfg())
+    for f in FINGERS:
+        loose = colour_mask(hsv, colours[f], LocatorCfg())
+        assert masks[f].any() and loose[masks[f]].mean() > 0.97  # (nearly) all of the finger
+        assert loose.mean() < 0.2
