@@ -130,7 +130,7 @@ def _hue_offset(hue: np.ndarray, ref: float) -> np.ndarray:
 def colour_mask(hsv: np.ndarray, rgb, cfg: LocatorCfg) -> np.ndarray:
     """Every pixel loosely of a finger's colour (within `hue_tol_deg` of its nominal hue,
     saturation and brightness above the floors), from the image in OpenCV's full-range HSV
-    (uint8, ``COLOR_RGB2HSV_FULL``): a superset of the finger's mask (`colour_masks`), e.g. for
+    (uint8, ``COLOR_RGB2HSV_FULL``): nearly all of the finger's mask (`colour_masks`) and more, for
     keeping clear of a finger's soft edge."""
     hue = hsv[..., 0].astype(np.float32) * (360.0 / 256.0)
     return ((np.abs(_hue_offset(hue, hue_deg(rgb))) <= cfg.hue_tol_deg)
