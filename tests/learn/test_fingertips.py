@@ -10,8 +10,20 @@ from vistac.dataset import FINGERS, open_dataset
 from vistac_learn.data.fingertips import (
     Fingertip,
     LocatorCfg,
+    colour_mask,
+    finger_masks,
     fingertip_table,
     locate_fingertips,
+    located_in,
+    simulator_tips,
+)
+from vistac_learn.data.perturb import (
+    PERTURBATIONS,
+    Scene,
+    map_direction,
+    map_points,
+    perturb,
+    segment,
 )
 from vistac_learn.data.variants import read_rgb, rotation_matrix
 
@@ -20,13 +32,7 @@ TIP_PX, AXIS_DEG = 2.0, 3.0  # agreed tolerance: the crop is 54 px wide, a degre
 
 def _truth(t, row: int, finger: str) -> tuple[np.ndarray, np.ndarray]:
     """Simulator's tip centre (pixels) and finger axis (image u, v) of a configuration."""
-    c = t.configs.iloc[row]
-    size = read_rgb(t.image_path(row)).shape[0]
-    ppm = c["px_per_m"]
-    tip = np.array([(c[f"tip_{finger}_x"] - c["camera_x"]) * ppm + size / 2,
-                    -(c[f"tip_{finger}_y"] - c["camera_y"]) * ppm + size / 2])
-    axis = np.array([c[f"approach_{finger}_x"], -c[f"approach_{finger}_y"]])
-    return tip, axis / np.linalg.norm(axis)
+    return simulator_tips(t, row, read_rgb(t.image_path(row)).shape[0])[finger]
 
 
 def _angle(a: np.ndarray, b: np.ndarray) -> float:
@@ -105,3 +111,63 @@ def test_fingers_are_found_under_image_effects(preset, tmp_path):
     for row in range(len(t.configs)):
         found = locate_fingertips(read_rgb(t.image_path(row)), colours)
         assert all(found[f].ok for f in FINGERS), row
+
+
+@pytest.mark.parametrize("name", ["table", "object", "overlay", "light", "tilt", "camera"])
+def test_fingers_are_found_in_perturbed_images(small_dataset, name):
+    """Photographic tables and objects, restyled overlays, light, tilt, noise/blur/JPEG: every
+    finger of the first images still found within the agreed tolerance of the truth (moved by
+    the perturbation's homography)."""
+    t = open_dataset(small_dataset)
+    colours = {f: t.finger_rgb(f) for f in FINGERS}
+    k = PERTURBATIONS.index(name)
+    for row in range(8):
+        rgb = read_rgb(t.image_path(row))
+        scene = Scene(segment(rgb, colours, t.table_rgb), colours)
+        p = perturb(name, rgb, scene, np.random.default_rng([0, row, k]))
+        found = locate_fingertips(p.rgb, colours)
+        for f in FINGERS:
+            assert found[f].ok, (row, f, found[f].reason)
+            tip, axis = _truth(t, row, f)
+            assert np.hypot(*(found[f].tip - map_points(p.homography, tip[None])[0])) < TIP_PX
+            assert _angle(found[f].axis, map_direction(p.homography, tip, axis)) < AXIS_DEG
+
+
+def test_a_background_of_the_fingers_colour_is_reported():
+    img = np.zeros((96, 96, 3), np.uint8)
+    img[:] = (200, 30, 30)  # a red table
+    cv2.line(img, (0, 20), (50, 50), (0, 255, 0), 12)
+    found = locate_fingertips(img, {"index": (0.0, 0.85, 0.0), "thumb": (0.9, 0.0, 0.0)})
+    assert found["index"].ok
+    assert not found["thumb"].ok and "% of the image" in found["thumb"].reason
+
+
+def test_the_cache_key_follows_the_locator_version(small_dataset, tmp_path, monkeypatch):
+    import vistac_learn.data.fingertips as fingertips
+
+    t = open_dataset(small_dataset)
+    before = fingertips._cache_path(t, LocatorCfg(), tmp_path)
+    monkeypatch.setattr(fingertips, "LOCATOR_VERSION", fingertips.LOCATOR_VERSION + 1)
+    assert fingertips._cache_path(t, LocatorCfg(), tmp_path) != before
+
+
+def test_located_in_serves_given_images(small_dataset):
+    t = open_dataset(small_dataset)
+    rows = np.array([1, 3])
+    imgs = [read_rgb(t.image_path(r)) for r in rows]
+    table = located_in(t, rows, imgs)
+    assert len(table.frame) == len(t.configs)
+    assert table.get(1, "index").ok and table.get(3, "thumb").ok
+    assert not table.get(0, "index").ok and table.failures(np.array([0, 1, 2]), "thumb") == 2
+
+
+def test_the_loose_colour_mask_covers_the_finger(small_dataset):
+    t = open_dataset(small_dataset)
+    colours = {f: t.finger_rgb(f) for f in FINGERS}
+    img = read_rgb(t.image_path(0))
+    hsv = cv2.cvtColor(img, cv2.COLOR_RGB2HSV_FULL)
+    masks = finger_masks(img, colours, LocatorCfg())
+    for f in FINGERS:
+        loose = colour_mask(hsv, colours[f], LocatorCfg())
+        assert masks[f].any() and loose[masks[f]].mean() > 0.97  # (nearly) all of the finger
+        assert loose.mean() < 0.2

@@ -170,3 +170,30 @@ def test_training_subsets_are_nested_and_seeded():
     assert (np.diff(big) > 0).all() and set(big) <= set(rows)
     assert not np.array_equal(small, subset_rows(rows, 0.1, 4))
     np.testing.assert_array_equal(subset_rows(rows, 1.0, 3), rows)
+
+
+def test_appearance_augmentation_perturbs_seeded_and_off_changes_nothing(ds):
+    plain = _set(ds, augment=AugmentCfg(), seed=2)
+    off = _set(ds, augment=AugmentCfg(appearance=0.0), seed=2)
+    on = _set(ds, augment=AugmentCfg(appearance=1.0), seed=2)
+    items = np.arange(len(on))
+    # off: the same draws as before the option existed (no random number spent on it)
+    assert [plain.aug(i, 1) for i in items] == [off.aug(i, 1) for i in items]
+    assert all(off.aug(i, 1).appearance == -1 for i in items)
+    assert all(on.aug(i, 1).appearance >= 0 for i in items)
+    a, b = on.batch(items, 1), on.batch(items, 1)
+    np.testing.assert_array_equal(a["image"].numpy(), b["image"].numpy())  # replayable
+    c = off.batch(items, 1)
+    assert not np.array_equal(a["image"].numpy(), c["image"].numpy())
+    np.testing.assert_array_equal(a["target"].numpy(), c["target"].numpy())  # labels unchanged
+    assert a["found"].all()
+
+
+def test_train_config_switches_appearance_augmentation_on():
+    from vistac_learn.train.config import protocol_cfg
+
+    cfg = protocol_cfg("default", "d", "r", appearance=0.5)
+    assert cfg.augment_cfg().appearance == 0.5
+    assert protocol_cfg("default", "d", "r").augment_cfg().appearance == 0.0
+    with pytest.raises(UserError):
+        protocol_cfg("default", "d", "r", appearance=1.5)

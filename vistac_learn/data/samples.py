@@ -9,8 +9,9 @@ decoded and rendered by a small thread pool (OpenCV releases the GIL) between tr
 Rotations (`RotationCfg`): ``none`` (one sample per configuration), ``fixed`` (n samples per
 configuration at angles k * step, the study's 20 x 18 degrees) or ``random`` (n samples per
 configuration, each at an angle drawn anew every epoch). Augmentation (`AugmentCfg`, training
-only): mirror and, for the tip view, crop jitter, drawn per sample from (seed, epoch, sample), so
-a resumed run replays exactly what an uninterrupted one saw.
+only): mirror, for the tip view crop jitter, and optionally appearance perturbations toward
+photographs (`vistac_learn.data.perturb`), drawn per sample from (seed, epoch, sample), so a
+resumed run replays exactly what an uninterrupted one saw.
 
 Targets from the repeats of a configuration (`target`):
 
@@ -22,7 +23,7 @@ Targets from the repeats of a configuration (`target`):
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
@@ -33,7 +34,15 @@ import torch
 from vistac.config import Config, param
 from vistac.dataset import FINGERS, DatasetTables
 from vistac.errors import UserError
-from vistac_learn.data.fingertips import FingertipTable, read_rgb
+from vistac_learn.data.fingertips import Fingertip, FingertipTable, read_rgb
+from vistac_learn.data.perturb import (
+    Scene,
+    map_direction,
+    map_points,
+    perturb_axes,
+    random_axes,
+    segment,
+)
 from vistac_learn.data.views import IDENTITY, Aug, SampleInfo, View
 
 TARGETS = ("mean", "press", "all")
@@ -78,13 +87,49 @@ class AugmentCfg(Config):
     shift: float = param(0.1, ge=0, le=1, help="tip view: crop-centre jitter, fingertip radii")
     turn: float = param(2.0, ge=0, le=45, help="tip view: crop-angle jitter, degrees")
     scale: float = param(0.05, ge=0, lt=0.5, help="tip view: crop-side jitter, fraction")
+    appearance: float = param(0.0, ge=0, le=1, help="share of the images perturbed toward "
+                              "photographs (`vistac_learn.data.perturb.random_axes`)")
 
     def draw(self, rng: np.random.Generator, angle: float) -> Aug:
         """One sample's parameters."""
         u = rng.uniform(-1.0, 1.0, 4)
-        return Aug(angle=angle, mirror=bool(self.mirror and rng.random() < 0.5),
+        mirror = bool(self.mirror and rng.random() < 0.5)
+        seed = int(rng.integers(2**31)) if self.appearance > 0 and \
+            rng.random() < self.appearance else -1
+        return Aug(angle=angle, mirror=mirror,
                    shift=(float(u[0] * self.shift), float(u[1] * self.shift)),
-                   turn=float(u[2] * self.turn), scale=float(1.0 + u[3] * self.scale))
+                   turn=float(u[2] * self.turn), scale=float(1.0 + u[3] * self.scale),
+                   appearance=seed)
+
+
+def perturb_sample(rgb: np.ndarray, info: SampleInfo, finger_rgb: dict[str, tuple],
+                   rng: np.random.Generator) -> tuple[np.ndarray, SampleInfo]:
+    """A clean render perturbed toward a photograph along a random set of axes
+    (`vistac_learn.data.perturb`), with its fingertips and finger boxes moved by the tilt."""
+    scene = Scene(segment(rgb, finger_rgb, info.table_rgb), finger_rgb)
+    out = perturb_axes(random_axes(rng), rgb, scene, rng)
+    hom = out.homography
+    if np.allclose(hom, np.eye(3)):
+        return out.rgb, info
+    tips = {}
+    for f, t in info.tips.items():
+        if not t.ok:
+            tips[f] = t
+            continue
+        tip = map_points(hom, t.tip[None])[0]
+        edge = map_points(hom, (t.tip + t.radius * np.array([-t.axis[1], t.axis[0]]))[None])[0]
+        tips[f] = Fingertip(tip, map_direction(hom, t.tip, t.axis),
+                            float(np.hypot(*(edge - tip))))
+    boxes = {}
+    for f, b in info.boxes.items():
+        if b is None:
+            boxes[f] = None
+            continue
+        x, y, w, h = b
+        c = map_points(hom, np.array([[x, y], [x + w, y], [x, y + h], [x + w, y + h]]))
+        lo, hi = c.min(axis=0), c.max(axis=0)
+        boxes[f] = np.array([lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1]])
+    return out.rgb, SampleInfo(boxes, tips, info.table_rgb)
 
 
 class SampleSet:
@@ -102,12 +147,15 @@ class SampleSet:
         augment: Augmentation (None: none, as at evaluation).
         tips: Located fingertips (required by views that need them).
         threads: Rendering threads.
+        images: Where a configuration row's image comes from (default: decoded from the
+            dataset), e.g. perturbed copies for a stress test.
     """
 
     def __init__(self, tables: DatasetTables, rows: np.ndarray, view: View, size: int,
                  fingers: tuple[str, ...], target: str = "mean", seed: int = 0,
                  rotations: RotationCfg = RotationCfg(), augment: AugmentCfg | None = None,
-                 tips: FingertipTable | None = None, threads: int = 2):
+                 tips: FingertipTable | None = None, threads: int = 2,
+                 images: Callable[[int], np.ndarray] | None = None):
         if target not in TARGETS:
             raise UserError(f"target must be one of {', '.join(TARGETS)}, not {target!r}")
         if view.needs_tips and tips is None:
@@ -119,6 +167,8 @@ class SampleSet:
         self.tables, self.view, self.size, self.fingers = tables, view, size, tuple(fingers)
         self.target, self.seed, self.rotations, self.augment = target, seed, rotations, augment
         self.tips, self.threads = tips, threads
+        self.image = images or (lambda row: read_rgb(tables.image_path(row)))
+        self._finger_rgb = {f: tables.finger_rgb(f) for f in FINGERS}
         self.rows = np.asarray(rows, dtype=np.int64)
         n_rot = rotations.count
         self.item_row = np.repeat(self.rows, n_rot)
@@ -191,8 +241,11 @@ class SampleSet:
     def render(self, item: int, epoch: int) -> tuple[np.ndarray, np.ndarray]:
         """One sample's model input: pixels (uint8) and side features (float32)."""
         row = int(self.item_row[item])
-        rgb = read_rgb(self.tables.image_path(row))
+        rgb = self.image(row)
         info, aug = self.info(row), self.aug(item, epoch)
+        if aug.appearance >= 0:
+            rgb, info = perturb_sample(rgb, info, self._finger_rgb,
+                                       np.random.default_rng(aug.appearance))
         return (self.view.render(rgb, info, aug, self.size, self.fingers),
                 self.view.side(info, aug, self.fingers))
 

@@ -25,7 +25,10 @@ labels, which are forces in each fingertip's own frame:
   same rule from the mirrored finger has its y axis mirrored too (tested against the simulator);
 - crop jitter (tip view): the crop centre moves by a fraction of a radius, its angle by a few
   degrees and its side by a few per cent, as errors of the fingertip locator would; labels
-  unchanged.
+  unchanged;
+- appearance (`vistac_learn.data.perturb`): the image made to look more like a photograph
+  (textures, overlay style, light, tilt, camera); labels unchanged, fingertips and boxes moved
+  with a tilt.
 """
 
 from __future__ import annotations
@@ -56,6 +59,8 @@ class Aug:
         shift: Crop-centre offset in fingertip radii, (along the finger, across it) (tip view).
         turn: Crop-angle offset, degrees (tip view).
         scale: Crop-side factor (tip view).
+        appearance: Seed of the image's appearance perturbation (`vistac_learn.data.perturb`),
+            -1 for none.
     """
 
     angle: float = 0.0
@@ -63,6 +68,7 @@ class Aug:
     shift: tuple[float, float] = (0.0, 0.0)
     turn: float = 0.0
     scale: float = 1.0
+    appearance: int = -1
 
 
 IDENTITY = Aug()

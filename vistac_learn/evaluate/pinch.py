@@ -39,10 +39,11 @@ from vistac.dataset import FINGERS, DatasetTables
 from vistac_learn.data.fingertips import (
     Fingertip,
     LocatorCfg,
-    colour_mask,
+    colour_masks,
     finger_masks,
     locate_finger,
     object_mask,
+    to_hsv,
 )
 from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.geometric import image_predictions, sensor_direction
@@ -268,10 +269,15 @@ def locate(img: np.ndarray, colours: dict, loc: LocatorCfg, margin_px: int
     masks = finger_masks(img, colours, loc)
     anyf = np.logical_or.reduce(list(masks.values()))
     table = table_colour(img, anyf)
-    # every pixel of a finger's colour, also those the locator's opening drops (a finger's
-    # thin edge), and a margin around them: no outline there
-    hsv = cv2.cvtColor(img, cv2.COLOR_RGB2HSV_FULL)
-    raw = np.logical_or.reduce([colour_mask(hsv, c, loc) for c in colours.values()]) | anyf
+    # every pixel of a finger's drawn colour, also those the locator's opening drops (a
+    # finger's thin edge), and a margin around them: no outline there. The drawn colour's own
+    # band (`colour_masks`), not the loose hue window, which takes in brown or orange objects.
+    hsv = to_hsv(img)
+    raw = anyf.copy()
+    for c in colours.values():
+        cands, _ = colour_masks(hsv, c, loc)
+        if cands:
+            raw |= cands[0]
     size = 2 * margin_px + 1
     near_finger = cv2.dilate(raw.astype(np.uint8), np.ones((size, size), np.uint8)) > 0
     obj = object_mask(img, anyf, loc)

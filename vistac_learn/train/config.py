@@ -78,6 +78,9 @@ class TrainCfg(Config):
     mirror: bool = param(True, help="mirror half of the training samples (r_y -> -r_y)")
     jitter: float = param(1.0, ge=0, le=10, help="tip view: crop jitter as a multiple of the "
                           "default (0.1 radius, 2 deg, 5 %%); 0 switches it off")
+    appearance: float = param(0.0, ge=0, le=1, help="share of training images perturbed toward "
+                              "photographs (textures, overlay style, light, tilt, camera); 0: "
+                              "off")
     margin: float = param(0.05, ge=0, le=1, help="study views: finger-box margin, fraction of "
                           "the image side")
     size: int | None = param(None, ge=16, le=1024, help="input side (default: the model's)")
@@ -141,10 +144,10 @@ class TrainCfg(Config):
     def augment_cfg(self) -> AugmentCfg | None:
         """Training augmentation (None when nothing is switched on)."""
         j = self.jitter if self.variant == TIP_VIEW else 0.0
-        if not self.mirror and j == 0:
+        if not self.mirror and j == 0 and self.appearance == 0:
             return None
         d = AugmentCfg()
-        return AugmentCfg(self.mirror, d.shift * j, d.turn * j, d.scale * j)
+        return AugmentCfg(self.mirror, d.shift * j, d.turn * j, d.scale * j, self.appearance)
 
 
 def _is_model(name: str) -> bool:

@@ -1,0 +1,223 @@
+"""The fingertip locator on clean and perturbed images, against the simulator's truth.
+
+For each image of a generated dataset and each perturbation (`vistac_learn.data.perturb`: one
+axis at a time and all at once, drawn from (seed, row, perturbation)), the locator runs on the
+perturbed image and its tip centre and finger axis are compared with the simulator's (the
+``tip_*`` / ``approach_*`` columns of ``configs.parquet``, moved by the perturbation's
+homography). Reported per perturbation and finger: found %, tip error (median, 99th
+percentile, max, px), axis error (median, 99th percentile, max, deg), % within the agreed
+tolerance (found, tip < 2 px, axis < 3 deg), milliseconds per image, and the failure reasons.
+
+Writes ``locator_robustness.md`` / ``.json`` into ``--out``.
+
+Usage:
+    python benchmarks/locator_robustness.py --out benchmarks/results --n 300
+    (the dataset: `vistac generate --n 1000 --noise 0.05 --seed 21 --split-by object`, made
+    under <out>/data if --data is not given)
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import numpy as np  # noqa: E402
+from learnbench import ensure_dataset, machine, save  # noqa: E402
+
+from vistac.dataset import FINGERS, open_dataset  # noqa: E402
+from vistac_learn.data.fingertips import (  # noqa: E402
+    LOCATOR_VERSION,
+    LocatorCfg,
+    locate_fingertips,
+    simulator_tips,
+)
+from vistac_learn.data.perturb import (  # noqa: E402
+    PERTURBATIONS,
+    Scene,
+    map_direction,
+    map_points,
+    perturb,
+    segment,
+)
+from vistac_learn.data.variants import read_rgb  # noqa: E402
+
+TIP_PX, AXIS_DEG = 2.0, 3.0  # the agreed tolerance (tests/learn/test_fingertips.py)
+
+
+def measure(data: Path, n: int, seed: int, names: tuple[str, ...], cfg: LocatorCfg) -> dict:
+    """Per perturbation and finger: errors, found counts, reasons and time."""
+    t = open_dataset(data)
+    colours = {f: t.finger_rgb(f) for f in FINGERS}
+    rows = np.random.default_rng(seed).permutation(len(t.configs))[:n]
+    rec = {name: {"tip": {f: [] for f in FINGERS}, "axis": {f: [] for f in FINGERS},
+                  "reasons": collections.Counter(), "seconds": 0.0} for name in names}
+    for row in rows:
+        rgb = read_rgb(t.image_path(int(row)))
+        truth = simulator_tips(t, int(row), rgb.shape[0])
+        scene = Scene(segment(rgb, colours, t.table_rgb), colours)
+        for k, name in enumerate(names):
+            if name == "clean":
+                img, hom = rgb, np.eye(3)
+            else:
+                p = perturb(name, rgb, scene, np.random.default_rng([seed, int(row), k]))
+                img, hom = p.rgb, p.homography
+            t0 = time.perf_counter()
+            found = locate_fingertips(img, colours, cfg)
+            rec[name]["seconds"] += time.perf_counter() - t0
+            for f in FINGERS:
+                tip, axis = truth[f]
+                got = found[f]
+                if not got.ok:
+                    rec[name]["reasons"][f"{f}: {got.reason}"] += 1
+                    rec[name]["tip"][f].append(np.nan)
+                    rec[name]["axis"][f].append(np.nan)
+                    continue
+                tip_p = map_points(hom, tip[None])[0]
+                axis_p = map_direction(hom, tip, axis)
+                rec[name]["tip"][f].append(float(np.hypot(*(got.tip - tip_p))))
+                rec[name]["axis"][f].append(float(np.degrees(np.arccos(
+                    np.clip(got.axis @ axis_p, -1.0, 1.0)))))
+    out = {}
+    for name in names:
+        r = rec[name]
+        per = {}
+        for f in FINGERS:
+            tip, ax = np.array(r["tip"][f]), np.array(r["axis"][f])
+            ok = np.isfinite(tip)
+            good = ok & (np.nan_to_num(tip, nan=1e9) < TIP_PX) & \
+                (np.nan_to_num(ax, nan=1e9) < AXIS_DEG)
+            per[f] = {"found_pct": 100.0 * ok.mean(), "within_tol_pct": 100.0 * good.mean(),
+                      **{f"tip_{s}_px": float(fn(tip[ok])) if ok.any() else None
+                         for s, fn in (("median", np.median), ("max", np.max),
+                                       ("p99", lambda x: np.percentile(x, 99)))},
+                      **{f"axis_{s}_deg": float(fn(ax[ok])) if ok.any() else None
+                         for s, fn in (("median", np.median), ("max", np.max),
+                                       ("p99", lambda x: np.percentile(x, 99)))}}
+        out[name] = {"fingers": per, "ms_per_image": 1000 * r["seconds"] / len(rows),
+                     "reasons": dict(r["reasons"].most_common(8))}
+    return {"n_images": int(len(rows)), "results": out}
+
+
+def speed(data: Path, n: int, rev: str) -> dict:
+    """Milliseconds per clean image of this locator and of the one at git revision `rev`,
+    timed interleaved (image by image) so that a shared machine's load hits both alike."""
+    import importlib.util
+    import subprocess
+    import tempfile
+
+    src = subprocess.run(["git", "show", f"{rev}:vistac_learn/data/fingertips.py"],
+                         capture_output=True, text=True, check=True,
+                         cwd=Path(__file__).resolve().parent).stdout
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "fingertips_before.py"
+        path.write_text(src)
+        spec = importlib.util.spec_from_file_location("fingertips_before", path)
+        before = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = before  # dataclasses look their module up
+        spec.loader.exec_module(before)
+    t = open_dataset(data)
+    colours = {f: t.finger_rgb(f) for f in FINGERS}
+    imgs = [read_rgb(t.image_path(r)) for r in range(min(n, len(t.configs)))]
+    secs = {"before": 0.0, "now": 0.0}
+    for _ in range(2):
+        for img in imgs:
+            for key, fn in (("before", before.locate_fingertips), ("now", locate_fingertips)):
+                t0 = time.perf_counter()
+                fn(img, colours)
+                secs[key] += time.perf_counter() - t0
+    return {"rev": rev, "n_images": len(imgs),
+            **{f"{k}_ms_per_image": 1000 * v / (2 * len(imgs)) for k, v in secs.items()}}
+
+
+def grid(data: Path, n: int, seed: int, path: Path) -> None:
+    """A JPEG of `n` images: clean, then each perturbation (as the benchmark draws them)."""
+    import cv2
+
+    t = open_dataset(data)
+    colours = {f: t.finger_rgb(f) for f in FINGERS}
+    rows = np.random.default_rng(seed).permutation(len(t.configs))[:n]
+    lines = []
+    for row in rows:
+        rgb = read_rgb(t.image_path(int(row)))
+        scene = Scene(segment(rgb, colours, t.table_rgb), colours)
+        tiles = [rgb] + [perturb(name, rgb, scene, np.random.default_rng([seed, int(row), k])).rgb
+                         for k, name in enumerate(("clean", *PERTURBATIONS)) if k > 0]
+        lines.append(np.concatenate(tiles, axis=1))
+    img = np.concatenate(lines, axis=0)
+    head = np.full((22, img.shape[1], 3), 255, np.uint8)
+    w = rgb.shape[1]
+    for k, name in enumerate(("clean", *PERTURBATIONS)):
+        cv2.putText(head, name, (k * w + 6, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1,
+                    cv2.LINE_AA)
+    cv2.imwrite(str(path), np.concatenate([head, img], axis=0)[..., ::-1],
+                [cv2.IMWRITE_JPEG_QUALITY, 90])
+
+
+def markdown(res: dict) -> str:
+    """The table: one row per perturbation and finger."""
+    head = ["perturbation", "finger", "found %", "within 2 px / 3 deg %", "tip median px",
+            "tip p99 px", "tip max px", "axis median deg", "axis p99 deg", "axis max deg",
+            "ms / image"]
+    lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+
+    def f3(v):
+        return "-" if v is None else f"{v:.3g}"
+
+    for name, r in res["results"].items():
+        for f, m in r["fingers"].items():
+            lines.append("| " + " | ".join([
+                name, f, f"{m['found_pct']:.1f}", f"{m['within_tol_pct']:.1f}",
+                f3(m["tip_median_px"]), f3(m["tip_p99_px"]), f3(m["tip_max_px"]),
+                f3(m["axis_median_deg"]), f3(m["axis_p99_deg"]), f3(m["axis_max_deg"]),
+                f"{r['ms_per_image']:.1f}"]) + " |")
+    reasons = [f"- {name}: " + "; ".join(f"{k} ({v})" for k, v in r["reasons"].items())
+               for name, r in res["results"].items() if r["reasons"]]
+    return "\n".join(lines + ([""] + ["Failure reasons (count):"] + reasons if reasons else []))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--out", type=Path, default=Path("benchmarks/results"))
+    ap.add_argument("--data", type=Path, default=None, help="dataset (default: made in --out)")
+    ap.add_argument("--n", type=int, default=300, help="images (a seeded sample)")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--name", default="locator_robustness", help="results file name")
+    ap.add_argument("--speed-rev", default="47798a8", help="git revision whose locator is "
+                    "timed beside this one on clean images ('' to skip)")
+    ap.add_argument("--grid", type=int, default=4, help="images in <out>/perturbations.jpg")
+    ap.add_argument("--grid-only", action="store_true", help="write the grid, measure nothing")
+    a = ap.parse_args()
+    data = a.data or ensure_dataset(a.out / "data" / "d1000", "--n", "1000", "--noise", "0.05",
+                                    "--seed", "21", "--split-by", "object")
+    a.out.mkdir(parents=True, exist_ok=True)
+    if a.grid:
+        grid(data, a.grid, a.seed, a.out / "perturbations.jpg")
+    if a.grid_only:
+        return
+    names = ("clean", *PERTURBATIONS)
+    t0 = time.perf_counter()
+    fast = speed(data, 100, a.speed_rev) if a.speed_rev else None
+    res = measure(data, a.n, a.seed, names, LocatorCfg())
+    if fast:
+        res["speed"] = fast
+    res |= {"locator_version": LOCATOR_VERSION, "data": str(data), "seed": a.seed,
+            "wall_s": time.perf_counter() - t0, "machine": machine(),
+            "tolerance": {"tip_px": TIP_PX, "axis_deg": AXIS_DEG}}
+    md = (f"Fingertip locator v{LOCATOR_VERSION} on {res['n_images']} images of {data} "
+          f"(x2 fingers), clean and perturbed (seed {a.seed}); shared 2-core machine, times "
+          "are indicative.\n\n" + markdown(res))
+    if "speed" in res:
+        sp = res["speed"]
+        md += (f"\n\nSpeed on {sp['n_images']} clean images, timed interleaved: "
+               f"{sp['now_ms_per_image']:.1f} ms per image now, "
+               f"{sp['before_ms_per_image']:.1f} ms with the locator of {sp['rev']}.")
+    save(a.out, a.name, res, md)
+
+
+if __name__ == "__main__":
+    main()
