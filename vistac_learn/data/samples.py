@@ -33,6 +33,7 @@ import torch
 from vistac.config import Config, param
 from vistac.dataset import FINGERS, DatasetTables
 from vistac.errors import UserError
+from vistac_learn.data.contacts import contact_truth
 from vistac_learn.data.fingertips import FingertipTable, read_rgb
 from vistac_learn.data.views import IDENTITY, Aug, SampleInfo, View
 
@@ -134,6 +135,7 @@ class SampleSet:
               np.ones(len(tables.configs), bool) for f in self.fingers]
         self._found = np.stack(ok, axis=1)
         self._table_rgb = tables.table_rgb
+        self._contacts = contact_truth(tables) if view.needs_contacts else None
         self._pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
         self.mirror_all = False  # test-time augmentation: every sample mirrored
 
@@ -186,30 +188,38 @@ class SampleSet:
         """Boxes, fingertips and background of a configuration row."""
         boxes = {f: self.tables.box(row, f) for f in self.view.needs_boxes}
         tips = {f: self.tips.get(row, f) for f in FINGERS} if self.view.needs_tips else {}
-        return SampleInfo(boxes, tips, self._table_rgb)
+        contacts = {}
+        if self._contacts is not None:
+            c = self._contacts
+            contacts = {f: (c.point[row, i], c.normal[row, i], c.axis[row, i])
+                        for i, f in enumerate(FINGERS) if c.known[row, i]}
+        return SampleInfo(boxes, tips, self._table_rgb, contacts)
 
-    def render(self, item: int, epoch: int) -> tuple[np.ndarray, np.ndarray]:
-        """One sample's model input: pixels (uint8) and side features (float32)."""
+    def render(self, item: int, epoch: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One sample's model input: pixels (uint8), side features and auxiliary targets
+        (float32)."""
         row = int(self.item_row[item])
         rgb = read_rgb(self.tables.image_path(row))
         info, aug = self.info(row), self.aug(item, epoch)
         return (self.view.render(rgb, info, aug, self.size, self.fingers),
-                self.view.side(info, aug, self.fingers))
+                self.view.side(info, aug, self.fingers), self.view.aux(info, aug, self.fingers))
 
     def batch(self, items: np.ndarray, epoch: int = 0) -> dict[str, torch.Tensor]:
-        """Rendered inputs (pixels and side features), augmented targets, found-masks and ids."""
+        """Rendered inputs (pixels and side features), augmented targets, auxiliary targets
+        (NaN where unknown), found-masks and ids."""
         items = np.asarray(items, dtype=np.int64)
         if self._pool is not None and len(items) > 1:
             done = list(self._pool.map(lambda i: self.render(int(i), epoch), items))
         else:
             done = [self.render(int(i), epoch) for i in items]
-        imgs, side = [d[0] for d in done], [d[1] for d in done]
+        imgs, side, aux = [d[0] for d in done], [d[1] for d in done], [d[2] for d in done]
         target = self.targets(items, epoch)
         mirrored = np.array([self.aug(int(i), epoch).mirror for i in items], bool)
         target[mirrored, 0::2] *= -1  # r_y of every finger changes sign in a mirrored view
         return {
             "image": torch.from_numpy(np.stack(imgs).astype(np.float32) / 255.0),
             "side": torch.from_numpy(np.stack(side).astype(np.float32)),
+            "aux": torch.from_numpy(np.stack(aux).astype(np.float32)),
             "target": torch.from_numpy(target),
             "found": torch.from_numpy(self.found(items)),
             "row": torch.from_numpy(self.item_row[items]),

@@ -2,11 +2,14 @@
 
 Two protocols, each a complete set of defaults (every option overrides either):
 
-- ``default``: the project's recipe. The ``tip`` view (each finger's fingertip crop, found in
-  the image and turned so that the finger points up) and `tipnet`, both fingers through one
-  network; AdamW with a one-cycle learning-rate schedule, batches of 32, 30 epochs; mirror and
-  crop-jitter augmentation drawn per batch; the best epoch by the validation median angle to
-  the cone mean.
+- ``default``: the project's recipe. The ``pinch`` view (each finger's fingertip crop, found
+  in the image and turned so that the finger points up, plus the numbers relating the two
+  crops' frames) and `pinchnet` inside `PinchModel`: one network reads each crop's contact point
+  and normal, the label is composed from them (closing axis, friction cone), and the
+  simulator's contact points and normals, where the dataset has them, are auxiliary targets
+  (``--aux-weight``); AdamW with a one-cycle learning-rate schedule, batches of 32, 30
+  epochs; mirror and crop-jitter augmentation drawn per batch; the best epoch by the
+  validation median angle to the cone mean.
 - ``study``: the reference study's protocol (thesis.md section 8): SchoeConv100-V3(FC160) on
   ``edge-index`` images at 20 fixed rotations of 18 degrees, index finger, MSE, Adam with a
   constant lr 1e-4, weight decay 1e-5, batches of 5, 20 epochs; selection by the validation
@@ -35,14 +38,16 @@ from vistac_learn.data.samples import (
     SampleSet,
     fingers_of,
 )
-from vistac_learn.data.views import TIP_VIEW, VIEWS, View, make_view
+from vistac_learn.data.views import PINCH_VIEW, TIP_VIEW, VIEWS, View, make_view
 from vistac_learn.models import create_model, list_models
+from vistac_learn.models.pinch import EMBED, PinchModel
 from vistac_learn.models.tipnet import PerFinger
 
 DEVICES = ("auto", "cpu", "cuda")
 OPTIMIZERS = ("adam", "adamw")
 SCHEDULES = ("constant", "onecycle")
 FREEZE = ("none", "features")
+CROP_VIEWS = (PINCH_VIEW, TIP_VIEW)  # views of finger-aligned fingertip crops
 
 
 @dataclass(frozen=True)
@@ -52,9 +57,12 @@ class TrainCfg(Config):
 
     data: str = param(help="dataset directory")
     out: str = param(help="run folder to create (or continue)")
-    model: str = param("tipnet", help="registered model name (`vistac models`)")
-    variant: str = param(TIP_VIEW, choices=VIEWS, help="what the model sees: tip (fingertip "
-                         "crops) or one of the study's image variants")
+    model: str = param("pinchnet", help="registered model name (`vistac models`); on the "
+                       "pinch view it is the backbone of the contact-geometry model")
+    variant: str = param(PINCH_VIEW, choices=VIEWS, help="what the model sees: pinch (both "
+                         "fingertip crops, the label composed from contact geometry), tip "
+                         "(fingertip crops, the label regressed; with --model tipnet the "
+                         "previous default) or one of the study's image variants")
     finger: str = param("both", choices=FINGER_CHOICES,
                         help="finger(s) whose labels are the target (2 outputs per finger)")
     epochs: int = param(30, ge=1, le=100_000, help="epochs to train")
@@ -73,8 +81,8 @@ class TrainCfg(Config):
                              "random rotations (training and validation)")
     rotation_step: float = param(18.0, gt=0, le=360, help="degrees between fixed angles")
     mirror: bool = param(True, help="mirror half of the training samples (r_y -> -r_y)")
-    jitter: float = param(1.0, ge=0, le=10, help="tip view: crop jitter as a multiple of the "
-                          "default (0.1 radius, 2 deg, 5 %%); 0 switches it off")
+    jitter: float = param(1.0, ge=0, le=10, help="tip and pinch views: crop jitter as a "
+                          "multiple of the default (0.1 radius, 2 deg, 5 %%); 0 switches it off")
     margin: float = param(0.05, ge=0, le=1, help="study views: finger-box margin, fraction of "
                           "the image side")
     size: int | None = param(None, ge=16, le=1024, help="input side (default: the model's)")
@@ -98,6 +106,9 @@ class TrainCfg(Config):
     checkpoint_every: int = param(0, ge=0, help="also checkpoint every N batches (0: at epoch "
                                   "ends only)")
     eval_batch_size: int = param(256, ge=1, help="samples per forward pass when scoring")
+    aux_weight: float = param(1.0, ge=0, le=1e6, help="pinch view: weight of the auxiliary "
+                              "contact-point and normal losses where the dataset has the "
+                              "simulator's contacts (0: labels only)")
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -107,15 +118,15 @@ class TrainCfg(Config):
         if self.select != "loss" and self.select not in selectable_metrics():
             raise UserError(f"--select {self.select!r}: not a metric; choose loss or one of "
                             f"{', '.join(selectable_metrics())}")
-        if self.variant == TIP_VIEW and self.rotations != "none":
-            raise UserError("--rotations: the tip view turns every crop to its finger, so "
-                            "rotations change nothing; use --rotations none")
+        if self.variant in CROP_VIEWS and self.rotations != "none":
+            raise UserError(f"--rotations: the {self.variant} view turns every crop to its "
+                            "finger, so rotations change nothing; use --rotations none")
         if self.freeze != "none" and self.init is None:
             raise UserError("--freeze: needs --init RUN (weights to keep fixed)")
         if self.train_split == self.val_split:
             raise UserError(f"--val-split: must differ from --train-split "
                             f"({self.train_split})")
-        if self.variant != TIP_VIEW and self.variant.endswith(("-index", "-thumb")):
+        if self.variant not in CROP_VIEWS and self.variant.endswith(("-index", "-thumb")):
             region = self.variant.rsplit("-", 1)[1]
             if self.finger not in (region,):
                 raise UserError(f"--finger {self.finger}: variant {self.variant} shows only "
@@ -127,7 +138,7 @@ class TrainCfg(Config):
 
     def augment_cfg(self) -> AugmentCfg | None:
         """Training augmentation (None when nothing is switched on)."""
-        j = self.jitter if self.variant == TIP_VIEW else 0.0
+        j = self.jitter if self.variant in CROP_VIEWS else 0.0
         if not self.mirror and j == 0:
             return None
         d = AugmentCfg()
@@ -191,6 +202,9 @@ def build_model(cfg: TrainCfg) -> torch.nn.Module:
     n_fingers = len(fingers_of(cfg.finger))
     torch.manual_seed(cfg.seed)
     try:
+        if view.name == PINCH_VIEW:
+            return PinchModel(create_model(cfg.model, view.channels, EMBED),
+                              fingers_of(cfg.finger), EMBED)
         if view.per_finger:
             embed = 32 if view.side_features else 2
             return PerFinger(create_model(cfg.model, view.channels, embed), n_fingers,

@@ -42,7 +42,6 @@ from vistac.errors import UserError
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import fingers_of
 from vistac_learn.metrics.scoring import predict, score_predictions
-from vistac_learn.models.tipnet import apply_model
 from vistac_learn.train.checkpoints import (
     atomic_save,
     init_from_run,
@@ -56,6 +55,7 @@ from vistac_learn.train.config import (
     input_size,
     resolve_device,
 )
+from vistac_learn.train.losses import batch_loss, masked_mse  # noqa: F401  (masked_mse: API)
 
 HIGHER_IS_BETTER = frozenset({"correct_y_pct", "in_cone_pct", "n_in_cone"})
 RUN_FILES = frozenset({"config.json", "metrics.csv", "checkpoints", "eval"})
@@ -96,12 +96,6 @@ def _logged_epochs(path: Path) -> set[int]:
         return set()
     with path.open() as fh:
         return {int(r["epoch"]) for r in csv.DictReader(fh)}
-
-
-def masked_mse(pred: torch.Tensor, target: torch.Tensor, found: torch.Tensor) -> torch.Tensor:
-    """MSE over the fingers that were located (every finger for views that locate none)."""
-    w = found.to(pred.dtype).repeat_interleave(2, dim=1)
-    return ((pred - target) ** 2 * w).sum() / w.sum().clamp_min(1.0)
 
 
 def evaluate_loss(model, ds, device, batch_size: int) -> tuple[float, np.ndarray]:
@@ -252,7 +246,7 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
             for b, batch in train_ds.batches(perm, cfg.batch_size, epoch, first):
                 y = batch["target"].to(device)
                 opt.zero_grad(set_to_none=True)
-                loss = masked_mse(apply_model(model, batch, device), y, batch["found"].to(device))
+                loss = batch_loss(model, batch, device, cfg.aux_weight)
                 if not torch.isfinite(loss):
                     raise TrainingDiverged(epoch + 1, "training loss",
                                            float(loss.detach()), cfg.lr)
