@@ -7,7 +7,7 @@ Two protocols, each a complete set of defaults (every option overrides either):
   crops' frames) and `pinchnet` inside `PinchModel`: one network reads each crop's contact point
   and normal, the label is composed from them (closing axis, friction cone), and the
   simulator's contact points and normals, where the dataset has them, are auxiliary targets
-  (``--aux-weight``); AdamW with a one-cycle learning-rate schedule, batches of 32, 30
+  (``--aux-weight``); AdamW with a one-cycle learning-rate schedule, batches of 32, 15
   epochs; mirror and crop-jitter augmentation drawn per batch; the best epoch by the
   validation median angle to the cone mean.
 - ``study``: the reference study's protocol (thesis.md section 8): SchoeConv100-V3(FC160) on
@@ -65,7 +65,7 @@ class TrainCfg(Config):
                          "previous default) or one of the study's image variants")
     finger: str = param("both", choices=FINGER_CHOICES,
                         help="finger(s) whose labels are the target (2 outputs per finger)")
-    epochs: int = param(30, ge=1, le=100_000, help="epochs to train")
+    epochs: int = param(15, ge=1, le=100_000, help="epochs to train")
     batch_size: int = param(32, ge=1, le=65_536, help="samples per optimiser step")
     optimizer: str = param("adamw", choices=OPTIMIZERS, help="optimiser")
     lr: float = param(3e-3, gt=0, le=1e6, help="learning rate (the peak of a one-cycle schedule)")
