@@ -3,8 +3,8 @@
 Generates a small simulated dataset (objects split between train, validation and test), trains
 the default model (`pinchnet` on the pinch view: contact geometry read from the fingertip
 crops, both fingers), evaluates it and the geometric baseline on the held-out objects, and
-writes `report.md` with the study-layout tables and figures. Re-running reuses what is already done (the dataset, a finished
-or interrupted training run).
+writes `report.md` with the study-layout tables and figures. Re-running reuses what is
+already done (the dataset, a finished or interrupted training run).
 """
 
 from __future__ import annotations

@@ -91,7 +91,7 @@ class PinchView(View):
     """Both fingers' crops, the numbers relating their frames, and contact targets."""
 
     name, channels, per_finger, needs_tips, needs_contacts = PINCH_VIEW, 3, True, True, True
-    side_features, aux_features, all_fingers = PAIR_FEATURES, CONTACT_FEATURES, True
+    side_features, aux_features = PAIR_FEATURES, CONTACT_FEATURES
 
     def __init__(self, cfg: TipCfg | None = None):
         self.cfg = cfg or TipCfg()

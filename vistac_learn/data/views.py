@@ -100,7 +100,6 @@ class View:
     needs_tips: bool = False
     needs_contacts: bool = False
     aux_features: int = 0  # auxiliary targets per finger (`aux`)
-    all_fingers: bool = False  # renders every finger of `FINGERS`, whichever are the target
 
     def render(self, rgb: np.ndarray, info: SampleInfo, aug: Aug, size: int,
                fingers: tuple[str, ...]) -> np.ndarray:
