@@ -7,11 +7,15 @@ memory and disk stay flat however many configurations or augmentations a run use
 
 Views:
 
-- ``tip`` (the default): per finger, a square crop centred on the front of the fingertip and
+- ``tip``: per finger, a square crop centred on the front of the fingertip and
   rotated so that the finger points up (`vistac_learn.data.fingertips` finds tip and axis in the
   image), side `span` fingertip radii, in colour. The thumb's crop is mirrored left-right, so
   that both fingers' labels read in the index finger's convention (the thumb's y axis is the
   index finger's mirrored, contracts.md) and one network serves both. Output (F, 3, S, S).
+- ``pinch`` (the default, `vistac_learn.data.pinch_view`): both fingers' ``tip`` crops, the
+  numbers relating the two crops' frames and, where the dataset knows them, the simulator's
+  contact geometry as auxiliary targets (`View.aux`). Output (2, 3, S, S) whichever finger is
+  the target.
 - The study's ``<color|edge>-<base|crop|index|thumb>`` (thesis.md section 4,
   `vistac_learn.data.variants`): the whole image rotated, optionally cut to the finger boxes.
   Output (C, S, S).
