@@ -10,6 +10,7 @@ Scores, on the test split (median angle to the cone mean, both fingers), the lab
 - the same, without the friction clamp: what the cone adds;
 - the bare prior: the line between the two crop centres (the fronts of the located
   fingertips), no normal, no clamp: what an untrained model starts from;
+- the line between the located tip centres (the fingertips' circle centres), no clamp;
 
 beside the noise floor (the noise-free force scored like a prediction). A trained model sits
 between the bare prior and the first row.
@@ -32,7 +33,7 @@ from vistac.dataset import FINGERS, open_dataset, unit_labels
 from vistac.dataset.schema import clean_force_columns
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import SampleSet
-from vistac_learn.data.views import make_view
+from vistac_learn.data.views import TipCfg, make_view
 from vistac_learn.metrics.scoring import score
 from vistac_learn.models.pinch import MU, compose_labels
 
@@ -51,14 +52,16 @@ def composed(data: Path, split: str = "test") -> dict[str, np.ndarray]:
             known = torch.isfinite(aux).all(-1, keepdim=True)
             aux = torch.where(known, aux, torch.tensor([0.0, 0.0, 0.0, -1.0, 0.0]).double())
             p, n, phi = aux[..., 0:2], aux[..., 2:4], aux[..., 4]
-            zero, down = torch.zeros_like(phi), torch.zeros_like(n)
+            zero, down, tip = torch.zeros_like(phi), torch.zeros_like(n), torch.zeros_like(p)
             down[..., 1] = -1.0
+            tip[..., 1] = -2.0 * TipCfg().forward / TipCfg().span  # crop units: half sides
             variants = {
                 "simulator contacts, normals, finger axes": (p, n, phi, MU),
                 "... finger axes as located (phi = 0)": (p, n, zero, MU),
                 "... no friction clamp": (p, n, phi, NO_CLAMP),
                 "bare prior: crop centre to crop centre": (torch.zeros_like(p), down, zero,
                                                            NO_CLAMP),
+                "located tip centre to tip centre": (tip, down, zero, NO_CLAMP),
             }
             for name, (pp, nn_, ph, mu) in variants.items():
                 lab = compose_labels(pp, nn_, ph, zero, side, mu).reshape(len(p), -1)
