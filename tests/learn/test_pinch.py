@@ -119,7 +119,7 @@ def test_the_model_outputs_the_fingers_it_is_asked_for():
     thumb.load_state_dict(both.state_dict())
     with torch.no_grad():
         out, geo = both(x, side, aux=True)
-        assert out.shape == (3, 4) and set(geo) == {"p", "normal", "phi", "delta"}
+        assert out.shape == (3, 4) and set(geo) == {"p", "normal", "phi"}
         np.testing.assert_allclose(thumb(x, side).numpy(), out[:, 2:].numpy(), atol=1e-6)
     nan = torch.full((3, 2, 5), float("nan"))
     assert float(PinchModel.aux_loss(geo, nan)) == 0.0  # no truth: no auxiliary loss
