@@ -5,7 +5,7 @@ so a sticking pad's force is that axis seen in the finger's frame, turned back i
 cone around the contact normal when it leaves it. Measured on a 3000-configuration dataset
 (benchmarks/pinch_prior.py): the simulator's own contact points and normals composed this way
 score 0.78 / 0.76 deg median angle to the cone mean on held-out objects (index / thumb; the noise
-floor is 0.77 / 0.78), the bare prior from the located fingertip centres only 1.83 / 1.65. What
+floor is 0.77 / 0.78), the line between the located fingertip centres only 1.94 / 1.85. What
 a network must add is where on the rounded pad each finger touches (sub-pixel) and the normal.
 
 `PinchModel` (view ``pinch``, `vistac_learn.data.pinch_view`): one backbone (default `pinchnet`)
