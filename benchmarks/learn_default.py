@@ -1,23 +1,29 @@
-"""Issue 8's acceptance run: the default `vistac train` against the baselines and the study's nets.
+"""Acceptance run of the default recipe: `vistac train` against the references and the study's nets.
 
-Dataset: `vistac generate --n 3000 --noise 0.05 --split-by object` (held-out objects in test).
-Entries, all scored on the test split (both fingers where the entry predicts both):
+Dataset: `vistac generate --n 3000 --noise 0.05 --split-by object` (held-out objects in test;
+issue 20 uses ``--seed 21``). Entries, all scored on the test split (both fingers where the
+entry predicts both):
 
 - ``default``: `vistac train --data D --out R --finger both` with nothing else (the default
-  protocol: tip view, tipnet); its wall time includes locating the fingertips;
-- the geometric baseline (non-learned) and the constant mean label;
+  protocol: pinch view, pinchnet); its wall and CPU time include locating the fingertips;
+- the noise floor (the dataset's noise-free forces scored like a prediction), the geometric
+  baseline (non-learned) and the constant mean label;
 - the study's nets under the study's protocol (`--protocol study`, edge-index, index finger) by
   name; on a CPU the study's 20 fixed rotations x 20 epochs of a 0.66 GMAC net take hours, so
   by default they see ``--study-rotations`` random angles per configuration and epoch and are
   scored on the study's 20 fixed test rotations;
-- optionally study nets on the tip view with the default recipe (``--tip-models``).
+- optionally other nets on the tip view with the default recipe (``--tip-models``; ``tipnet``
+  is the previous default).
 
-Writes ``learn_default.md`` / ``.json`` and ``learn_default.png`` into ``--out``. Rerunning
+Writes ``<name>.md`` / ``.json`` and ``<name>.png`` into ``--out`` (``--name``, default
+``learn_default``). Rerunning
 with the same ``--out`` reuses the dataset and finished runs.
 
 Usage:
     python benchmarks/learn_default.py --out bench/default
     python benchmarks/learn_default.py --out bench/default --study-models smallconv
+    python benchmarks/learn_default.py --out bench/pinch --seed 21 --study-models \
+        --name learn_pinch
 """
 
 from __future__ import annotations
@@ -35,6 +41,7 @@ import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 from learnbench import (  # noqa: E402
     baseline_entry,
     ensure_dataset,
@@ -46,6 +53,10 @@ from learnbench import (  # noqa: E402
     slug,
     table,
 )
+
+from vistac.dataset import FINGERS, open_dataset, unit_labels  # noqa: E402
+from vistac.dataset.schema import clean_force_columns  # noqa: E402
+from vistac_learn.metrics.scoring import score  # noqa: E402
 
 
 def _cpu_s() -> float:
@@ -60,7 +71,7 @@ def _default_entry(data: Path, out: Path, progress: bool) -> dict:
     On a shared machine the wall time depends on the load; CPU seconds / 2 is what the run
     takes on 2 otherwise idle cores.
     """
-    label = "default (tipnet, tip view)"
+    label = "default (pinchnet, pinch view)"
     wall = out / "runs" / slug(label) / "wall_s.json"
     fresh = not (out / "runs" / slug(label) / "metrics.csv").exists()
     t0, c0 = time.perf_counter(), _cpu_s()
@@ -71,6 +82,19 @@ def _default_entry(data: Path, out: Path, progress: bool) -> dict:
     timing = json.loads(wall.read_text()) if wall.exists() else {}
     entry["wall_s"], entry["cpu_s"] = timing.get("wall_s"), timing.get("cpu_s")
     return entry
+
+
+def floor_entry(data: Path) -> dict:
+    """The noise floor: every configuration's noise-free force scored against its noisy presses'
+    cone, like a prediction."""
+    t = open_dataset(data)
+    rows = t.rows("test")
+    pred = np.concatenate([unit_labels(t.configs[clean_force_columns(f)].to_numpy(float))
+                           for f in FINGERS], axis=1)[rows]
+    return {"label": "noise floor (noise-free force)", "kind": "reference",
+            "fingers": list(FINGERS), "metrics": {
+                f: {k: float(v) for k, v in m.items()}
+                for f, m in score(pred, t, rows, rows, FINGERS).items()}}
 
 
 def plot(entries: list[dict], path: Path) -> None:
@@ -106,12 +130,13 @@ def main(argv: list[str] | None = None) -> int:
                    "SchoeConv100-V3 takes about 1.5 min per epoch on 2100 configurations)")
     p.add_argument("--tip-models", nargs="*", default=[],
                    help="study nets trained on the tip view with the default recipe")
+    p.add_argument("--name", default="learn_default", help="stem of the result files")
     p.add_argument("--quiet", action="store_true")
     args = p.parse_args(argv)
     data = args.data or ensure_dataset(args.out / "data", headline_data(args.n, args.seed))
     progress = not args.quiet
-    entries = [_default_entry(data, args.out, progress), baseline_entry(data, args.out),
-               mean_entry(data)]
+    entries = [_default_entry(data, args.out, progress), floor_entry(data),
+               baseline_entry(data, args.out), mean_entry(data)]
     rot = ({"rotations": "random", "n_rotations": args.study_rotations}
            if args.study_rotations else {})
     if args.study_epochs:
@@ -123,12 +148,12 @@ def main(argv: list[str] | None = None) -> int:
         entries.append(run_entry(data, args.out, label, "study", progress, model=name, **rot))
     for name in args.tip_models:
         entries.append(run_entry(data, args.out, f"{name}, tip view, default recipe",
-                                 "default", progress, model=name))
+                                 "default", progress, model=name, variant="tip"))
     extra = (("MACs/sample", "macs"), ("train s", "train_s"), ("wall s", "wall_s"),
              ("CPU s", "cpu_s"), ("epochs", "epochs"), ("best", "best_epoch"))
     md = table(entries, extra)
-    plot(entries, args.out / "learn_default.png")
-    save(args.out, "learn_default", {"dataset": str(data), "machine": machine(),
+    plot(entries, args.out / f"{args.name}.png")
+    save(args.out, args.name, {"dataset": str(data), "machine": machine(),
                                      "settings": {k: str(v) for k, v in vars(args).items()},
                                      "entries": entries}, md)
     return 0

@@ -1,11 +1,12 @@
 """`vistac demo`: the main job end to end on a small default, with a report.
 
 Generates a small simulated dataset (objects split between train, validation and test), trains
-the default model (`tipnet` on fingertip crops, both fingers), evaluates it and the geometric
-baseline on the held-out objects, beside the references of simulated data (the noise floor and
-the pinch baseline, `vistac_learn.evaluate.references`), and writes `report.md` with the
-study-layout tables and figures. Re-running reuses what is already done (the dataset, a finished
-or interrupted training run).
+the default model (`pinchnet` on the pinch view: contact geometry read from the fingertip
+crops, both fingers), evaluates it and the geometric baseline on the held-out objects, beside
+the references of simulated data (the noise floor and the pinch baseline,
+`vistac_learn.evaluate.references`), and writes `report.md` with the study-layout tables and
+figures. Re-running reuses what is already done (the dataset, a finished or interrupted
+training run).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ class DemoCfg(Config):
     out: Path = param(Path("runs/demo"), help="demo folder")
     n: int = param(600, ge=30, le=1_000_000, help="configurations to simulate")
     epochs: int = param(15, ge=1, le=10_000, help="training epochs")
-    model: str = param("tipnet", help="registered model (`vistac models`)")
+    model: str = param("pinchnet", help="registered model (`vistac models`)")
     workers: int = param(0, ge=0, help="generate processes (0: all cores)")
     seed: int = param(0, ge=0, lt=2**32, help="seed of the dataset and of the run")
 

@@ -191,6 +191,7 @@ CASES = [
     Case("eval-out-is-file", E.replace("{out}", "{file}"), "--out"),
     Case("eval-max-missing-pct", E + " --max-missing-pct 101", "--max-missing-pct"),
     Case("train-max-missing-pct", T + " --max-missing-pct -1", "--max-missing-pct"),
+    Case("train-aux-weight", T + " --aux-weight -1", "--aux-weight"),
     # ------------------------------------------------------------------ demo
     Case("demo-model", D + " --model nope", "--model"),
     Case("demo-n-1", D + " --n 1", "--n"),

@@ -34,6 +34,7 @@ import torch
 from vistac.config import Config, param
 from vistac.dataset import FINGERS, DatasetTables
 from vistac.errors import UserError
+from vistac_learn.data.contacts import contact_truth
 from vistac_learn.data.fingertips import Fingertip, FingertipTable, read_rgb
 from vistac_learn.data.perturb import (
     Scene,
@@ -105,7 +106,8 @@ class AugmentCfg(Config):
 def perturb_sample(rgb: np.ndarray, info: SampleInfo, finger_rgb: dict[str, tuple],
                    rng: np.random.Generator) -> tuple[np.ndarray, SampleInfo]:
     """A clean render perturbed toward a photograph along a random set of axes
-    (`vistac_learn.data.perturb`), with its fingertips and finger boxes moved by the tilt."""
+    (`vistac_learn.data.perturb`), with its fingertips, finger boxes and the simulator's
+    contacts moved by the tilt."""
     scene = Scene(segment(rgb, finger_rgb, info.table_rgb), finger_rgb)
     out = perturb_axes(random_axes(rng), rgb, scene, rng)
     hom = out.homography
@@ -129,7 +131,12 @@ def perturb_sample(rgb: np.ndarray, info: SampleInfo, finger_rgb: dict[str, tupl
         c = map_points(hom, np.array([[x, y], [x + w, y], [x, y + h], [x + w, y + h]]))
         lo, hi = c.min(axis=0), c.max(axis=0)
         boxes[f] = np.array([lo[0], lo[1], hi[0] - lo[0], hi[1] - lo[1]])
-    return out.rgb, SampleInfo(boxes, tips, info.table_rgb)
+    # the simulator's contacts move with the image: the point and the finger axis (pixels);
+    # the normal is in the sensor frame, which a slight tilt of the camera does not turn
+    contacts = {f: (map_points(hom, np.asarray(p, float)[None])[0], n,
+                    map_direction(hom, np.asarray(p, float), np.asarray(a, float)))
+                for f, (p, n, a) in info.contacts.items()}
+    return out.rgb, SampleInfo(boxes, tips, info.table_rgb, contacts)
 
 
 class SampleSet:
@@ -184,6 +191,7 @@ class SampleSet:
               np.ones(len(tables.configs), bool) for f in self.fingers]
         self._found = np.stack(ok, axis=1)
         self._table_rgb = tables.table_rgb
+        self._contacts = contact_truth(tables) if view.needs_contacts else None
         self._pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
         self.mirror_all = False  # test-time augmentation: every sample mirrored
 
@@ -236,10 +244,16 @@ class SampleSet:
         """Boxes, fingertips and background of a configuration row."""
         boxes = {f: self.tables.box(row, f) for f in self.view.needs_boxes}
         tips = {f: self.tips.get(row, f) for f in FINGERS} if self.view.needs_tips else {}
-        return SampleInfo(boxes, tips, self._table_rgb)
+        contacts = {}
+        if self._contacts is not None:
+            c = self._contacts
+            contacts = {f: (c.point[row, i], c.normal[row, i], c.axis[row, i])
+                        for i, f in enumerate(FINGERS) if c.known[row, i]}
+        return SampleInfo(boxes, tips, self._table_rgb, contacts)
 
-    def render(self, item: int, epoch: int) -> tuple[np.ndarray, np.ndarray]:
-        """One sample's model input: pixels (uint8) and side features (float32)."""
+    def render(self, item: int, epoch: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One sample's model input: pixels (uint8), side features and auxiliary targets
+        (float32)."""
         row = int(self.item_row[item])
         rgb = self.image(row)
         info, aug = self.info(row), self.aug(item, epoch)
@@ -247,22 +261,24 @@ class SampleSet:
             rgb, info = perturb_sample(rgb, info, self._finger_rgb,
                                        np.random.default_rng(aug.appearance))
         return (self.view.render(rgb, info, aug, self.size, self.fingers),
-                self.view.side(info, aug, self.fingers))
+                self.view.side(info, aug, self.fingers), self.view.aux(info, aug, self.fingers))
 
     def batch(self, items: np.ndarray, epoch: int = 0) -> dict[str, torch.Tensor]:
-        """Rendered inputs (pixels and side features), augmented targets, found-masks and ids."""
+        """Rendered inputs (pixels and side features), augmented targets, auxiliary targets
+        (NaN where unknown), found-masks and ids."""
         items = np.asarray(items, dtype=np.int64)
         if self._pool is not None and len(items) > 1:
             done = list(self._pool.map(lambda i: self.render(int(i), epoch), items))
         else:
             done = [self.render(int(i), epoch) for i in items]
-        imgs, side = [d[0] for d in done], [d[1] for d in done]
+        imgs, side, aux = [d[0] for d in done], [d[1] for d in done], [d[2] for d in done]
         target = self.targets(items, epoch)
         mirrored = np.array([self.aug(int(i), epoch).mirror for i in items], bool)
         target[mirrored, 0::2] *= -1  # r_y of every finger changes sign in a mirrored view
         return {
             "image": torch.from_numpy(np.stack(imgs).astype(np.float32) / 255.0),
             "side": torch.from_numpy(np.stack(side).astype(np.float32)),
+            "aux": torch.from_numpy(np.stack(aux).astype(np.float32)),
             "target": torch.from_numpy(target),
             "found": torch.from_numpy(self.found(items)),
             "row": torch.from_numpy(self.item_row[items]),

@@ -7,11 +7,15 @@ memory and disk stay flat however many configurations or augmentations a run use
 
 Views:
 
-- ``tip`` (the default): per finger, a square crop centred on the front of the fingertip and
+- ``tip``: per finger, a square crop centred on the front of the fingertip and
   rotated so that the finger points up (`vistac_learn.data.fingertips` finds tip and axis in the
   image), side `span` fingertip radii, in colour. The thumb's crop is mirrored left-right, so
   that both fingers' labels read in the index finger's convention (the thumb's y axis is the
   index finger's mirrored, docs/dataset-format.md) and one network serves both. Output (F, 3, S, S).
+- ``pinch`` (the default, `vistac_learn.data.pinch_view`): both fingers' ``tip`` crops, the
+  numbers relating the two crops' frames and, where the dataset knows them, the simulator's
+  contact geometry as auxiliary targets (`View.aux`). Output (2, 3, S, S) whichever finger is
+  the target.
 - The study's ``<color|edge>-<base|crop|index|thumb>`` (docs/study.md section 4,
   `vistac_learn.data.variants`): the whole image rotated, optionally cut to the finger boxes.
   Output (C, S, S).
@@ -44,7 +48,8 @@ from vistac_learn.data.fingertips import Fingertip
 from vistac_learn.data.variants import VARIANTS, VariantCfg, auto_canny, render_variant
 
 TIP_VIEW = "tip"
-VIEWS = (TIP_VIEW, *VARIANTS)
+PINCH_VIEW = "pinch"  # both crops and their relative frames (`vistac_learn.data.pinch_view`)
+VIEWS = (PINCH_VIEW, TIP_VIEW, *VARIANTS)
 SIDE_FEATURES = 5  # per finger, tip view: direction (2) and log distance (1) to the other
 # fingertip, the other finger's axis (2)
 
@@ -88,6 +93,10 @@ class SampleInfo:
     boxes: dict[str, np.ndarray | None] = field(default_factory=dict)
     tips: dict[str, Fingertip] = field(default_factory=dict)
     table_rgb: tuple[float, float, float] = (0.81, 0.81, 0.81)
+    contacts: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = field(default_factory=dict)
+    """Per finger whose truth is known, the simulator's contact point (pixels), normal
+    ((n_y, n_z)) and finger axis (image direction) (`vistac_learn.data.contacts`); filled for
+    views that set `needs_contacts`."""
 
 
 class View:
@@ -99,6 +108,8 @@ class View:
     side_features: int = 0
     needs_boxes: tuple[str, ...] = ()
     needs_tips: bool = False
+    needs_contacts: bool = False
+    aux_features: int = 0  # auxiliary targets per finger (`aux`)
 
     def render(self, rgb: np.ndarray, info: SampleInfo, aug: Aug, size: int,
                fingers: tuple[str, ...]) -> np.ndarray:
@@ -107,6 +118,10 @@ class View:
 
     def side(self, info: SampleInfo, aug: Aug, fingers: tuple[str, ...]) -> np.ndarray:
         """(F, side_features) float32 numbers beside the pixels (none by default)."""
+        return np.zeros((len(fingers), 0), np.float32)
+
+    def aux(self, info: SampleInfo, aug: Aug, fingers: tuple[str, ...]) -> np.ndarray:
+        """(F, aux_features) float32 auxiliary targets, NaN where unknown (none by default)."""
         return np.zeros((len(fingers), 0), np.float32)
 
 
@@ -143,6 +158,14 @@ def pair_features(this: Fingertip, other: Fingertip, aug: Aug, mirror: bool) -> 
     return np.array([u[0], u[1], np.log(dist / this.radius), a[0], a[1]], np.float32)
 
 
+def crop_centre(tip: Fingertip, cfg: TipCfg = TipCfg(), aug: Aug = IDENTITY) -> np.ndarray:
+    """(u, v) pixel the crop is centred on: ``tip + forward * r * axis`` plus the jitter."""
+    a = tip.axis
+    across = np.array([-a[1], a[0]])
+    r = tip.radius
+    return tip.tip + r * (cfg.forward + aug.shift[0]) * a + r * aug.shift[1] * across
+
+
 def tip_crop(rgb: np.ndarray, tip: Fingertip, size: int, cfg: TipCfg = TipCfg(),
              aug: Aug = IDENTITY, mirror: bool = False) -> np.ndarray:
     """Fingertip-centred, finger-aligned (finger pointing up) crop, (3, S, S) uint8.
@@ -154,11 +177,8 @@ def tip_crop(rgb: np.ndarray, tip: Fingertip, size: int, cfg: TipCfg = TipCfg(),
     """
     if not tip.ok:
         return np.zeros((3, size, size), np.uint8)
-    a = tip.axis
-    across = np.array([-a[1], a[0]])
-    r = tip.radius
-    centre = tip.tip + r * (cfg.forward + aug.shift[0]) * a + r * aug.shift[1] * across
-    scale = size / (cfg.span * r * aug.scale)
+    centre = crop_centre(tip, cfg, aug)
+    scale = size / (cfg.span * tip.radius * aug.scale)
     m = cv2.getRotationMatrix2D((float(centre[0]), float(centre[1])), crop_angle(tip, aug),
                                 float(scale))
     m[:, 2] += (size - 1) / 2.0 - centre  # the centre lands on the crop's centre
@@ -213,10 +233,15 @@ def make_view(name: str, margin: float = 0.05, tip: TipCfg = TipCfg()) -> View:
     """The view registered under `name` (`VIEWS`)."""
     if name == TIP_VIEW:
         return TipView(tip)
+    if name == PINCH_VIEW:
+        from vistac_learn.data.pinch_view import PinchView
+
+        return PinchView(tip)
     if name in VARIANTS:
         return StudyView(name, margin)
     raise UserError(f"unknown view {name!r}; choose from {', '.join(VIEWS)}")
 
 
-__all__ = ["Aug", "IDENTITY", "FINGERS", "SIDE_FEATURES", "SampleInfo", "StudyView", "TipCfg",
-           "TipView", "VIEWS", "View", "make_view", "mirror_labels", "pair_features", "tip_crop"]
+__all__ = ["Aug", "IDENTITY", "FINGERS", "PINCH_VIEW", "SIDE_FEATURES", "SampleInfo", "StudyView",
+           "TipCfg", "TipView", "VIEWS", "View", "crop_centre", "make_view", "mirror_labels",
+           "pair_features", "tip_crop"]

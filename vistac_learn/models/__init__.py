@@ -11,8 +11,11 @@ a module of this package (imported below) with that decorator.
   SchoeConv227-V1, -V2) use the reconstruction given in docs/study.md.
 - `baselines`: efficient CPU-sized baselines (not in the study): `resnet-tiny` (0.31 M
   parameters, 60 M MACs at 227 px) and `mobilenetv2-tiny` (0.25 M, 32 M MACs).
-- `tipnet`: the default model, a small CNN on one finger's fingertip crop (48 px, 7.8 M MACs),
-  and `PerFinger`, which runs any model on every finger's crop with shared weights.
+- `pinch`: the default model, `pinchnet` (a CoordConv CNN on one fingertip crop, 48 px) inside
+  `PinchModel`, which predicts each finger's contact point and normal and composes the label
+  from them (closing axis, friction cone).
+- `tipnet`: the previous default, a small CNN on one finger's fingertip crop (48 px, 7.8 M
+  MACs), and `PerFinger`, which runs any model on every finger's crop with shared weights.
 - `macs`: `count_macs`, multiply-accumulates of Conv2d and Linear layers for one image.
 - `command`: `vistac models`, the table of the registry.
 
@@ -25,6 +28,7 @@ single linear layer).
 from vistac_learn.models import study  # noqa: F401, I001  (each module registers its models)
 from vistac_learn.models import baselines  # noqa: F401
 from vistac_learn.models import tipnet  # noqa: F401
+from vistac_learn.models import pinch  # noqa: F401
 from vistac_learn.models.macs import count_macs
 from vistac_learn.models.registry import create_model, list_models, model_info, register_model
 

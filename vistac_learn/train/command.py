@@ -21,7 +21,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         help="train a model on a dataset",
         description="Train a registered model (see `vistac models`) on a dataset; select the "
         "best epoch on the validation split; resumable. Defaults are those of --protocol "
-        "default (the tip view and tipnet, both fingers); --protocol study switches them to "
+        "default (the pinch view and pinchnet, both fingers); --protocol study switches them to "
         f"the reference study's ({study}); any option overrides either.",
         formatter_class=HelpFormatter,
     )

@@ -2,11 +2,14 @@
 
 Two protocols, each a complete set of defaults (every option overrides either):
 
-- ``default``: the project's recipe. The ``tip`` view (each finger's fingertip crop, found in
-  the image and turned so that the finger points up) and `tipnet`, both fingers through one
-  network; AdamW with a one-cycle learning-rate schedule, batches of 32, 30 epochs; mirror and
-  crop-jitter augmentation drawn per batch; the best epoch by the validation median angle to
-  the cone mean.
+- ``default``: the project's recipe. The ``pinch`` view (each finger's fingertip crop, found
+  in the image and turned so that the finger points up, plus the numbers relating the two
+  crops' frames) and `pinchnet` inside `PinchModel`: one network reads each crop's contact point
+  and normal, the label is composed from them (closing axis, friction cone), and the
+  simulator's contact points and normals, where the dataset has them, are auxiliary targets
+  (``--aux-weight``); AdamW with a one-cycle learning-rate schedule, batches of 32, 15
+  epochs; mirror and crop-jitter augmentation drawn per batch; the best epoch by the
+  validation median angle to the cone mean.
 - ``study``: the reference study's protocol (docs/study.md section 8): SchoeConv100-V3(FC160) on
   ``edge-index`` images at 20 fixed rotations of 18 degrees, index finger, MSE, Adam with a
   constant lr 1e-4, weight decay 1e-5, batches of 5, 20 epochs; selection by the validation
@@ -38,14 +41,16 @@ from vistac_learn.data.samples import (
     fingers_of,
 )
 from vistac_learn.data.tip_coverage import MAX_MISSING_PCT, TipCoverage, tip_coverage
-from vistac_learn.data.views import TIP_VIEW, VIEWS, View, make_view
+from vistac_learn.data.views import PINCH_VIEW, TIP_VIEW, VIEWS, View, make_view
 from vistac_learn.models import create_model, list_models
+from vistac_learn.models.pinch import EMBED, PinchModel
 from vistac_learn.models.tipnet import PerFinger
 
 DEVICES = ("auto", "cpu", "cuda")
 OPTIMIZERS = ("adam", "adamw")
 SCHEDULES = ("constant", "onecycle")
 FREEZE = ("none", "features")
+CROP_VIEWS = (PINCH_VIEW, TIP_VIEW)  # views of finger-aligned fingertip crops
 
 
 @dataclass(frozen=True)
@@ -55,12 +60,15 @@ class TrainCfg(Config):
 
     data: str = param("", help="dataset directory (set by `vistac.train`'s data)")
     out: str = param("", help="run folder to create or continue (set by `vistac.train`'s out)")
-    model: str = param("tipnet", help="registered model name (`vistac models`)")
-    variant: str = param(TIP_VIEW, choices=VIEWS, help="what the model sees: tip (fingertip "
-                         "crops) or one of the study's image variants")
+    model: str = param("pinchnet", help="registered model name (`vistac models`); on the "
+                       "pinch view it is the backbone of the contact-geometry model")
+    variant: str = param(PINCH_VIEW, choices=VIEWS, help="what the model sees: pinch (both "
+                         "fingertip crops, the label composed from contact geometry), tip "
+                         "(fingertip crops, the label regressed; with --model tipnet the "
+                         "previous default) or one of the study's image variants")
     finger: str = param("both", choices=FINGER_CHOICES,
                         help="finger(s) whose labels are the target (2 outputs per finger)")
-    epochs: int = param(30, ge=1, le=100_000, help="epochs to train")
+    epochs: int = param(15, ge=1, le=100_000, help="epochs to train")
     batch_size: int = param(32, ge=1, le=65_536, help="samples per optimiser step")
     optimizer: str = param("adamw", choices=OPTIMIZERS, help="optimiser")
     lr: float = param(3e-3, gt=0, le=1e6, help="learning rate (the peak of a one-cycle schedule)")
@@ -76,8 +84,8 @@ class TrainCfg(Config):
                              "random rotations (training and validation)")
     rotation_step: float = param(18.0, gt=0, le=360, help="degrees between fixed angles")
     mirror: bool = param(True, help="mirror half of the training samples (r_y -> -r_y)")
-    jitter: float = param(1.0, ge=0, le=10, help="tip view: crop jitter as a multiple of the "
-                          "default (0.1 radius, 2 deg, 5 %%); 0 switches it off")
+    jitter: float = param(1.0, ge=0, le=10, help="tip and pinch views: crop jitter as a "
+                          "multiple of the default (0.1 radius, 2 deg, 5 %%); 0 switches it off")
     appearance: float = param(0.0, ge=0, le=1, help="share of training images perturbed toward "
                               "photographs (textures, overlay style, light, tilt, camera); 0: "
                               "off")
@@ -107,6 +115,9 @@ class TrainCfg(Config):
     max_missing_pct: float = param(MAX_MISSING_PCT, ge=0, le=100, help="tip view: refuse to "
                                    "train when the fingertips of more than this share (%%) of "
                                    "a split's configurations are not found in their images")
+    aux_weight: float = param(1.0, ge=0, le=1e6, help="pinch view: weight of the auxiliary "
+                              "contact-point and normal losses where the dataset has the "
+                              "simulator's contacts (0: labels only)")
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -116,15 +127,15 @@ class TrainCfg(Config):
         if self.select != "loss" and self.select not in selectable_metrics():
             raise UserError(f"--select {self.select!r}: not a metric; choose loss or one of "
                             f"{', '.join(selectable_metrics())}")
-        if self.variant == TIP_VIEW and self.rotations != "none":
-            raise UserError("--rotations: the tip view turns every crop to its finger, so "
-                            "rotations change nothing; use --rotations none")
+        if self.variant in CROP_VIEWS and self.rotations != "none":
+            raise UserError(f"--rotations: the {self.variant} view turns every crop to its "
+                            "finger, so rotations change nothing; use --rotations none")
         if self.freeze != "none" and self.init is None:
             raise UserError("--freeze: needs --init RUN (weights to keep fixed)")
         if self.train_split == self.val_split:
             raise UserError(f"--val-split: must differ from --train-split "
                             f"({self.train_split})")
-        if self.variant != TIP_VIEW and self.variant.endswith(("-index", "-thumb")):
+        if self.variant not in CROP_VIEWS and self.variant.endswith(("-index", "-thumb")):
             region = self.variant.rsplit("-", 1)[1]
             if self.finger not in (region,):
                 raise UserError(f"--finger {self.finger}: variant {self.variant} shows only "
@@ -143,7 +154,7 @@ class TrainCfg(Config):
 
     def augment_cfg(self) -> AugmentCfg | None:
         """Training augmentation (None when nothing is switched on)."""
-        j = self.jitter if self.variant == TIP_VIEW else 0.0
+        j = self.jitter if self.variant in CROP_VIEWS else 0.0
         if not self.mirror and j == 0 and self.appearance == 0:
             return None
         d = AugmentCfg()
@@ -207,6 +218,9 @@ def build_model(cfg: TrainCfg) -> torch.nn.Module:
     n_fingers = len(fingers_of(cfg.finger))
     torch.manual_seed(cfg.seed)
     try:
+        if view.name == PINCH_VIEW:
+            return PinchModel(create_model(cfg.model, view.channels, EMBED),
+                              fingers_of(cfg.finger), EMBED)
         if view.per_finger:
             embed = 32 if view.side_features else 2
             return PerFinger(create_model(cfg.model, view.channels, embed), n_fingers,

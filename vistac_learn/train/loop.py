@@ -53,7 +53,6 @@ from vistac.folder_lock import hold
 from vistac_learn.data.fingertips import fingertip_table
 from vistac_learn.data.samples import fingers_of
 from vistac_learn.metrics.scoring import predict, score_predictions
-from vistac_learn.models.tipnet import apply_model
 from vistac_learn.train.checkpoints import (
     atomic_save,
     init_from_run,
@@ -70,6 +69,7 @@ from vistac_learn.train.config import (
     resolve_device,
     run_coverage,
 )
+from vistac_learn.train.losses import batch_loss, masked_mse  # noqa: F401  (masked_mse: API)
 from vistac_learn.train.memory import check_fits
 from vistac_learn.train.run_files import read_run_config, run_settings
 
@@ -133,12 +133,6 @@ def _restore_metrics(path: Path, history: list[dict]) -> None:
     want = buf.getvalue().encode()
     if not path.exists() or path.read_bytes() != want:
         atomic_write_bytes(path, want)
-
-
-def masked_mse(pred: torch.Tensor, target: torch.Tensor, found: torch.Tensor) -> torch.Tensor:
-    """MSE over the fingers that were located (every finger for views that locate none)."""
-    w = found.to(pred.dtype).repeat_interleave(2, dim=1)
-    return ((pred - target) ** 2 * w).sum() / w.sum().clamp_min(1.0)
 
 
 def evaluate_loss(model, ds, device, batch_size: int) -> tuple[float, np.ndarray]:
@@ -302,7 +296,7 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
             for b, batch in train_ds.batches(perm, cfg.batch_size, epoch, first):
                 y = batch["target"].to(device)
                 opt.zero_grad(set_to_none=True)
-                loss = masked_mse(apply_model(model, batch, device), y, batch["found"].to(device))
+                loss = batch_loss(model, batch, device, cfg.aux_weight)
                 if diverged(float(loss.detach())):
                     raise TrainingDiverged(epoch + 1, "training loss",
                                            float(loss.detach()), cfg.lr)

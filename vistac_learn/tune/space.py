@@ -1,6 +1,6 @@
 """The search space of `vistac tune`: which training options vary, over what range, on what scale.
 
-Defaults (`DEFAULT_SPACE`) cover what matters for the default recipe (tipnet on fingertip
+Defaults (`DEFAULT_SPACE`) cover what matters for the default recipe (pinchnet on fingertip
 crops, AdamW with a one-cycle schedule): the peak learning rate and the weight decay on a log
 scale, the batch size (an integer), and the crop-jitter strength of the augmentation. A YAML or
 JSON file (``--space FILE``) changes them::
