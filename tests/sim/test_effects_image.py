@@ -8,6 +8,7 @@ import dataclasses
 import numpy as np
 import pandas as pd
 import pytest
+from pressed_scenes import pressed_scene
 
 from vistac_sim.effects.camera_jitter import CameraJitter, CameraJitterCfg
 from vistac_sim.effects.lighting import Lighting, LightingCfg
@@ -16,28 +17,14 @@ from vistac_sim.effects.registry import build_pipeline
 from vistac_sim.effects.shadows import Shadows, ShadowsCfg, shadow_map_size
 from vistac_sim.effects.table import Table, TableCfg
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import ObjectScene, solve
+from vistac_sim.generate.scenes import ObjectScene
 from vistac_sim.mj import mujoco
-from vistac_sim.objects.library import build_object, procedural_library
-from vistac_sim.physics.checks import RejectedSample
 from vistac_sim.render import view_render
 from vistac_sim.render.topview import finger_boxes
 from vistac_sim.render.view import CameraPose, View
 from vistac_sim.render.view_render import GEOM, render_view, view_boxes
 
 FINGERS = ("index", "thumb")
-
-
-def pressed_scene(cfg: GenerateCfg, spec_index: int = 0, seed: int = 1) -> ObjectScene:
-    spec = procedural_library(cfg.objects, 3)[spec_index]
-    scene = ObjectScene(build_object(spec, cfg.hand.height), cfg)
-    rng = np.random.default_rng(seed)
-    while True:
-        try:
-            solve(scene, scene.sampler.sample(rng), cfg)
-            return scene
-        except RejectedSample:
-            continue
 
 
 @pytest.fixture(scope="module")

@@ -10,6 +10,7 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
+from pressed_scenes import pressed_scene
 
 from vistac.cli import main
 from vistac.dataset import open_dataset
@@ -28,10 +29,8 @@ from vistac_sim.effects.sensor_noise import SensorNoise, SensorNoiseCfg
 from vistac_sim.effects.shadows import Shadows, ShadowsCfg
 from vistac_sim.effects.table import Table, TableCfg
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import ObjectScene, solve
+from vistac_sim.generate.scenes import ObjectScene
 from vistac_sim.mj import mujoco
-from vistac_sim.objects.library import build_object, procedural_library
-from vistac_sim.physics.checks import RejectedSample
 from vistac_sim.render import textures
 from vistac_sim.render.drawn import drawn_boxes, drawn_shapes
 from vistac_sim.render.finish import apply_finish, motion_kernel
@@ -42,23 +41,11 @@ from vistac_sim.render.view_render import GEOM, render_mask, render_view, view_b
 FINGERS = ("index", "thumb")
 
 
-def pressed(cfg: GenerateCfg, k: int, seed: int = 1) -> ObjectScene:
-    spec = procedural_library(cfg.objects, 3)[k]
-    scene = ObjectScene(build_object(spec, cfg.hand.height), cfg)
-    rng = np.random.default_rng(seed)
-    while True:
-        try:
-            solve(scene, scene.sampler.sample(rng), cfg)
-            return scene
-        except RejectedSample:
-            continue
-
-
 @pytest.fixture(scope="module")
 def photo():
     """The photo preset's config and two pressed scenes with its texture banks."""
     cfg = GenerateCfg.from_preset("photo")
-    scenes = [pressed(cfg, k) for k in (0, 2)]
+    scenes = [pressed_scene(cfg, k) for k in (0, 2)]
     yield cfg, scenes
     for s in scenes:
         s.close()
@@ -111,7 +98,7 @@ def test_user_textures_join_the_photographs(tmp_path):
 
 def test_textures_only_in_scenes_that_ask(photo):
     cfg, scenes = photo
-    clean = pressed(GenerateCfg(), 0)
+    clean = pressed_scene(GenerateCfg(), 0)
     try:
         assert clean.model.ntex == 0 and clean.view.texture_ids == {}
     finally:
