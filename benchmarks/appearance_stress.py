@@ -45,6 +45,8 @@ from vistac_learn.data.perturb import PERTURBATIONS, Scene, perturb, segment  # 
 from vistac_learn.data.samples import SampleSet  # noqa: E402
 from vistac_learn.data.variants import read_rgb  # noqa: E402
 from vistac_learn.evaluate.geometric import GeometricCfg, predict_image  # noqa: E402
+from vistac_learn.evaluate.pinch import dataset_friction  # noqa: E402
+from vistac_learn.evaluate.pinch import predict_image as pinch_image  # noqa: E402
 from vistac_learn.evaluate.run import load_model, load_run  # noqa: E402
 from vistac_learn.metrics.scoring import predict, score  # noqa: E402
 from vistac_learn.train.config import build_view, input_size, resolve_device  # noqa: E402
@@ -79,27 +81,36 @@ def run_predictor(run: Path) -> Predictor:
     return predict_rows
 
 
-def geometric_predictor() -> Predictor:
-    """The surface-normal (geometric) baseline, from the same fingertip locator."""
-    cfg = GeometricCfg()
+def image_baseline(predict_one: Callable) -> Callable[[], Predictor]:
+    """A non-learned baseline that works image by image, from the same fingertip locator:
+    ``predict_one(img, colours, tables) -> ((2F,) prediction, fingers that fell back)``."""
+    def make() -> Predictor:
+        def predict_rows(tables, rows, images):
+            colours = {f: tables.finger_rgb(f) for f in FINGERS}
+            out, lost = [], 0
+            for img in images:
+                p, fails = predict_one(img, colours, tables)
+                out.append(p)
+                lost += fails
+            return np.stack(out), lost
 
-    def predict_rows(tables, rows, images):
-        colours = {f: tables.finger_rgb(f) for f in FINGERS}
-        out, lost = [], 0
-        for img in images:
-            p, fails = predict_image(img, colours, FINGERS, cfg)
-            out.append(p)
-            lost += fails
-        return np.stack(out), lost
+        return predict_rows
 
-    return predict_rows
+    return make
+
+
+# the surface-normal (geometric) baseline and the pinch baseline (closing axis, friction cone)
+geometric_predictor = image_baseline(
+    lambda img, colours, tables: predict_image(img, colours, FINGERS, GeometricCfg()))
+pinch_predictor = image_baseline(
+    lambda img, colours, tables: pinch_image(img, colours, FINGERS, dataset_friction(tables)))
 
 
 def predictors(runs: dict[str, Path]) -> dict[str, Callable[[], Predictor]]:
     """Every predictor to score, by label (factories, built once)."""
     out = {label: (lambda r=run: run_predictor(r)) for label, run in runs.items()}
     out["geometric baseline"] = geometric_predictor
-    # out["pinch baseline"] = pinch_predictor   <- one line per further predictor
+    out["pinch baseline"] = pinch_predictor
     return out
 
 
