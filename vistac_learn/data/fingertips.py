@@ -268,14 +268,20 @@ def explained_finger_masks(rgb: np.ndarray, colours: dict[str, tuple], cfg: Loca
     return masks, why
 
 
-def object_mask(rgb: np.ndarray, fingers_any: np.ndarray, cfg: LocatorCfg) -> np.ndarray:
-    """Pixels that are neither finger nor table (table colour: median of the border pixels)."""
+def table_colour(rgb: np.ndarray, fingers_any: np.ndarray) -> np.ndarray:
+    """(3,) float table colour: the median of the image's border pixels that are not finger."""
     border = np.zeros(fingers_any.shape, bool)
     border[:3], border[-3:], border[:, :3], border[:, -3:] = True, True, True, True
     sel = border & ~fingers_any
     img = rgb.astype(np.float32)
-    table = np.median(img[sel] if sel.any() else img.reshape(-1, 3), axis=0)
-    dist = np.linalg.norm(cv2.GaussianBlur(img, (5, 5), 0) - table, axis=2)
+    return np.median(img[sel] if sel.any() else img.reshape(-1, 3), axis=0)
+
+
+def object_mask(rgb: np.ndarray, fingers_any: np.ndarray, cfg: LocatorCfg) -> np.ndarray:
+    """Pixels that are neither finger nor table (`table_colour`)."""
+    img = rgb.astype(np.float32)
+    dist = np.linalg.norm(cv2.GaussianBlur(img, (5, 5), 0) - table_colour(rgb, fingers_any),
+                          axis=2)
     hidden = cv2.dilate(fingers_any.astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
     return (dist > cfg.object_tol) & ~hidden
 

@@ -43,6 +43,7 @@ from vistac_learn.data.fingertips import (
     finger_masks,
     locate_finger,
     object_mask,
+    table_colour,
     to_hsv,
 )
 from vistac_learn.data.samples import RotationCfg
@@ -108,16 +109,6 @@ def dataset_friction(tables: DatasetTables) -> float:
     """The friction coefficient a dataset was simulated with (`DEFAULT_FRICTION` if unknown)."""
     physics = (tables.manifest.get("config") or {}).get("physics") or {}
     return float(physics.get("friction", DEFAULT_FRICTION))
-
-
-def table_colour(rgb: np.ndarray, fingers_any: np.ndarray) -> np.ndarray:
-    """(3,) float table colour: the median of the image's border pixels that are not finger
-    (the rule of `fingertips.object_mask`)."""
-    border = np.zeros(fingers_any.shape, bool)
-    border[:3], border[-3:], border[:, :3], border[:, -3:] = True, True, True, True
-    sel = border & ~fingers_any
-    img = rgb.astype(np.float32)
-    return np.median(img[sel] if sel.any() else img.reshape(-1, 3), axis=0)
 
 
 def outline_crossings(field: np.ndarray, level: float, valid: np.ndarray) -> np.ndarray:
