@@ -5,6 +5,7 @@ sub-command and one tiny generated dataset with recordings, a second dataset and
 from __future__ import annotations
 
 import shutil
+from dataclasses import dataclass
 
 import cv2
 import pytest
@@ -17,6 +18,22 @@ GEN_OK = ("generate --out {out} --n 2 --image-size 32 --n-objects 1 --repeats 1 
 ING_OK = "ingest --recordings {rec} --images {img} --out {out}"
 TRAIN_OK = "train --data {data} --out {out} --epochs 1 --size 16 --quiet"
 EVAL_OK = "evaluate --run {run} --no-plots --out {out}"
+
+
+@dataclass
+class Case:
+    """One bad or hostile command of the tables in tests/core: its arguments, the text its one
+    error line must contain, the exit status, what prepares its input and the good rerun."""
+
+    id: str
+    argv: str
+    needle: str
+    code: int = 2
+    setup: str | None = None  # name of a function preparing {out} (or other state) first
+    good: str | None = None  # the good rerun into {out} (default: the command's good one)
+    untouched: bool = False  # {out} is somebody else's folder: left as it was, no rerun
+    delete: bool = False  # the message says to delete the folder: the rerun does so first
+    check: str | None = None  # a function checking {out} after a successful (code 0) case
 
 
 @pytest.fixture(scope="session")

@@ -17,29 +17,15 @@ one-epoch run on the first.
 from __future__ import annotations
 
 import shutil
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
-from bad_input_env import EVAL_OK, GEN_OK, ING_OK, TRAIN_OK
+from bad_input_env import EVAL_OK, GEN_OK, ING_OK, TRAIN_OK, Case
 
 from vistac.cli import main
 
 GOOD = {"generate": GEN_OK, "ingest": ING_OK, "train": TRAIN_OK, "evaluate": EVAL_OK,
         "models": "models --out-features 2", "demo": None}
-
-
-@dataclass
-class Case:
-    """One bad command: its arguments, the text its error must contain, the exit status."""
-
-    id: str
-    argv: str
-    needle: str
-    code: int = 2
-    setup: str | None = None  # name of a function preparing {out} (or other state) first
-    good: str | None = field(default=None)  # good rerun (default: the command's GOOD)
-    untouched: bool = False  # {out} is somebody else's folder: left as it was, no rerun
 
 
 G = "generate --out {out} --n 4 --image-size 32 --workers 1 --no-progress"

@@ -13,12 +13,11 @@ holds, so it runs once per distinct pair.
 from __future__ import annotations
 
 import shutil
-from dataclasses import dataclass
 from pathlib import Path
 
 import pyarrow.parquet as pq
 import pytest
-from bad_input_env import GEN_OK, ING_OK
+from bad_input_env import GEN_OK, ING_OK, Case
 
 from vistac.cli import main
 from vistac.errors import MAX_MESSAGE
@@ -28,21 +27,6 @@ from vistac_sim.generate.verify import damaged_png
 G = GEN_OK
 GP = GEN_OK + " --chunk-size 1"  # the interrupted run of `partial`: two chunks
 I = "ingest --recordings {rec} --images {img} --out {out}"  # noqa: E741
-
-
-@dataclass
-class Case:
-    """One hostile command: its arguments, the text its one line must hold, its exit status."""
-
-    id: str
-    argv: str
-    needle: str
-    code: int = 2
-    setup: str | None = None  # a function preparing {out} first
-    good: str | None = None  # the good rerun (default: the command's, G or I)
-    delete: bool = False  # the message says to delete the folder: the rerun does so first
-    untouched: bool = False  # {out} must be left as it was (somebody's finished dataset)
-    check: str | None = None  # a function checking {out} after a successful (code 0) case
 
 
 BOMB = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
