@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from vistac.dataset.ingest.config import IngestCfg, IngestSources
+from vistac.dataset.ingest.run import ingest
 from vistac_sim.generate.run import generate
-from vistac_sim.recording.ingest.config import IngestCfg, IngestSources
-from vistac_sim.recording.ingest.run import ingest
 
 FINGERS = ("index", "thumb")
 

@@ -19,7 +19,8 @@ This core package holds what both halves share:
 - `vistac.cli`: the `vistac` command (each sub-command imported only when chosen);
 - `vistac.errors`: `UserError`, bad input reported in one line;
 - `vistac.config`: typed, self-validating config dataclasses (each parameter declared once);
-- `vistac.dataset`: the dataset format (schema, labels, manifest, readers and writers).
+- `vistac.dataset`: the dataset format (schema, labels, manifest, readers and writers, the
+  recording CSV layout) and `vistac.dataset.ingest` (recordings + images -> dataset).
 
 The simulator is `vistac_sim`, the learner `vistac_learn`.
 """
@@ -38,8 +39,8 @@ _LAZY = {
     "UserError": "vistac.errors",
     "EngineCfg": "vistac.engine",
     "GenerateCfg": "vistac_sim.generate.config",
-    "IngestCfg": "vistac_sim.recording.ingest.config",
-    "IngestSources": "vistac_sim.recording.ingest.config",
+    "IngestCfg": "vistac.dataset.ingest.config",
+    "IngestSources": "vistac.dataset.ingest.config",
     "TrainCfg": "vistac_learn.train.config",
     "EvaluateCfg": "vistac_learn.evaluate.command",
     "TrialCfg": "vistac_learn.tune.engines",

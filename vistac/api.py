@@ -37,6 +37,7 @@ from vistac.folder_lock import hold
 from vistac.outputs import Dataset, Evaluation, Report, Run
 
 if TYPE_CHECKING:  # the configs live beside the code that uses them
+    from vistac.dataset.ingest.config import IngestCfg, IngestSources
     from vistac.engine import EngineCfg
     from vistac_learn.evaluate.command import EvaluateCfg
     from vistac_learn.experiments.label_noise import LabelNoiseCfg
@@ -44,7 +45,6 @@ if TYPE_CHECKING:  # the configs live beside the code that uses them
     from vistac_learn.train.config import TrainCfg
     from vistac_learn.tune.engines import TrialCfg
     from vistac_sim.generate.config import GenerateCfg
-    from vistac_sim.recording.ingest.config import IngestCfg, IngestSources
 
 
 # ------------------------------------------------------------------------------- datasets
@@ -121,8 +121,8 @@ def ingest(sources: IngestSources, out: str | Path, cfg: IngestCfg | None = None
         UserError: unreadable or inconsistent inputs, an unusable `out`.
     """
     from vistac.dataset.files import check_out_dir
-    from vistac_sim.recording.ingest.config import IngestCfg
-    from vistac_sim.recording.ingest.run import ingest as run_ingest
+    from vistac.dataset.ingest.config import IngestCfg
+    from vistac.dataset.ingest.run import ingest as run_ingest
 
     out = check_out_dir(out)
     run_ingest(sources, out, cfg or IngestCfg())

@@ -24,7 +24,7 @@ from vistac.errors import UserError, shorten
 COMMANDS: dict[str, tuple[str, str]] = {
     "generate": ("vistac_sim.generate.command",
                  "simulate presses and write a visuo-tactile dataset"),
-    "ingest": ("vistac_sim.recording.ingest.command",
+    "ingest": ("vistac.dataset.ingest.command",
                "turn RH8D/FTS-3 recordings and their images into a dataset"),
     "models": ("vistac_learn.models.command",
                "list the model zoo with parameters and multiply-accumulates"),

@@ -8,7 +8,7 @@ Sub-packages follow the data's way through `vistac generate`:
 - `physics`: the press, its checks and the surface-normal look-up;
 - `render`: the orthographic top view, exact finger boxes, PNG encoding, effect views;
 - `effects`: the effect registry and one small module per effect, presets and scene files;
-- `recording`: the 50 Hz press session, RH8D/FTS-3 recording CSVs and `vistac ingest`;
+- `recording`: the 50 Hz press session and its RH8D/FTS-3 recording CSV;
 - `generate`: grasp sampling, one configuration end to end, workers, shards and resume.
 
 MuJoCo is imported through `vistac_sim.mj` only (it picks the headless GL backend).

@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import vistac
+import vistac.dataset.ingest
 import vistac_learn
 import vistac_sim
 
@@ -39,9 +40,16 @@ def test_learner_does_not_import_mujoco():
     assert "torch" in loaded and "mujoco" not in loaded
 
 
-def test_ingest_imports_neither_mujoco_nor_torch():
-    loaded = _loaded_after("import vistac_sim.recording.ingest.command")
-    assert not {"mujoco", "torch"} & loaded
+def test_ingest_imports_neither_the_simulator_nor_torch():
+    loaded = _loaded_after("\n".join(f"import {m}" for m in _modules(vistac.dataset.ingest)))
+    assert "vistac" in loaded and not {"mujoco", "torch", "vistac_sim"} & loaded
+
+
+def test_ingest_package_leaves_the_api_function_in_place():
+    """Importing the `ingest` package (as the CLI does) must not hide `vistac.ingest(...)`."""
+    code = ("import vistac\nf = vistac.ingest\nimport vistac.dataset.ingest.command\n"
+            "assert vistac.ingest is f and callable(vistac.ingest)")
+    assert "vistac" in _loaded_after(code)
 
 
 def test_generate_does_not_import_torch(tmp_path):

@@ -19,9 +19,9 @@ from ingest_fixtures import (
 )
 
 from vistac.dataset import SplitCfg
+from vistac.dataset.ingest.config import IngestSources
+from vistac.dataset.ingest.run import ingest
 from vistac.errors import UserError
-from vistac_sim.recording.ingest.config import IngestSources
-from vistac_sim.recording.ingest.run import ingest
 
 
 # ---------------------------------------------------------------------------- the dataset
@@ -296,7 +296,7 @@ def test_round_trip_generate_recordings_then_ingest(tmp_path):
 
 def test_a_number_name_keeps_its_id_whatever_the_other_names():
     """Issue 22: one odd name used to renumber every configuration 0..N-1 in name order."""
-    from vistac_sim.recording.ingest.readers import config_ids
+    from vistac.dataset.ingest.readers import config_ids
 
     numbers = {"000003": 3, "000010": 10, "7": 7}
     assert config_ids(list(numbers)) == numbers

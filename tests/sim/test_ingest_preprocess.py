@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 from ingest_fixtures import PLATEAUS, press_series, write_csv
 
-from vistac_sim.recording.ingest.config import IngestCfg
-from vistac_sim.recording.ingest.preprocess import (
+from vistac.dataset.ingest.config import IngestCfg
+from vistac.dataset.ingest.preprocess import (
     REASONS,
     preprocess,
     representative_sample,
@@ -73,7 +73,7 @@ def test_truncated_at_the_start():
 
 
 def test_windows_line_endings_and_float_cells(tmp_path):
-    from vistac_sim.recording.ingest.readers import read_recording
+    from vistac.dataset.ingest.readers import read_recording
 
     rng = np.random.default_rng(5)
     series = press_series(PLATEAUS[3], rng)

@@ -6,8 +6,8 @@ import pandas as pd
 import pytest
 
 from vistac.cli import main
+from vistac.dataset.recordings import HEADER
 from vistac_sim.generate import worker as generate_mod
-from vistac_sim.recording.layout import HEADER
 
 ARGS = ["--n", "6", "--seed", "3", "--workers", "1", "--no-progress", "--n-objects", "3",
         "--chunk-size", "2", "--preset", "lab", "--noise", "0.02", "--recordings"]

@@ -10,7 +10,11 @@ neither MuJoCo nor torch:
 - `vistac.dataset.files`: atomic files, deterministic Parquet tables, the manifest's parts;
 - `vistac.dataset.splits`: `SplitCfg` and `assign_splits`;
 - `vistac.dataset.reader`: `read_manifest`, `open_dataset` -> `DatasetTables` (with the dataset
-  fingerprint).
+  fingerprint);
+- `vistac.dataset.recordings`: the RH8D/FTS-3 recording CSV layout (written by the simulator,
+  read by `ingest`);
+- `vistac.dataset.ingest`: `vistac ingest`, recordings and/or label spreadsheets plus images ->
+  a dataset (imported only when used; it needs pandas and openpyxl).
 """
 
 from vistac.dataset.files import (

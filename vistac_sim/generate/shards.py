@@ -27,10 +27,10 @@ from vistac.dataset.files import (
     write_manifest,
     write_row_groups,
 )
+from vistac.dataset.recordings import recording_name
 from vistac.dataset.schema import CONFIGS, IMAGES, MASKS, PARTIAL, PRESSES
 from vistac.errors import UserError
 from vistac_sim.generate.verify import damaged_files, read_run_state
-from vistac_sim.recording.layout import recording_name
 
 SHARD = ".arrow"
 """Shards are Arrow IPC files: ~5x cheaper to write and read back than Parquet, and they only

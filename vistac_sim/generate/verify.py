@@ -16,9 +16,9 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from vistac.dataset.recordings import recording_name
 from vistac.dataset.schema import CONFIGS, IMAGES, MANIFEST, MASKS, PRESSES
 from vistac.errors import UserError
-from vistac_sim.recording.layout import recording_name
 
 PNG_HEAD = b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR"
 PNG_TAIL = b"\x00\x00\x00\x00IEND\xaeB`\x82"

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from vistac.dataset import files
+from vistac.dataset.recordings import recording_name
 from vistac.dataset.schema import IMAGES, MASKS
 from vistac.errors import UserError
 from vistac_sim.effects import build_pipeline
@@ -26,7 +27,6 @@ from vistac_sim.generate.scenes import NoValidGrasp, ObjectScene, SceneCache, dr
 from vistac_sim.objects.decomposition import default_cache_dir
 from vistac_sim.objects.library import build_object
 from vistac_sim.objects.specs import ObjectSpec
-from vistac_sim.recording.layout import recording_name
 
 
 # ------------------------------------------------------------------------- screening an object

@@ -1,3 +1,3 @@
-"""Recordings: the simulated 50 Hz press/hold/release session of a configuration (`session`),
-the RH8D/FTS-3 recording CSV layout (`layout`), and `vistac ingest`, which turns such recordings
-(simulated or real) plus their images into a dataset (`ingest`, no MuJoCo needed)."""
+"""Recordings: the simulated 50 Hz press/hold/release session of a configuration (`session`)
+and its recording CSV (`layout`), in the RH8D/FTS-3 layout of `vistac.dataset.recordings`.
+`vistac ingest`, which reads such recordings back, is `vistac.dataset.ingest` (no MuJoCo)."""

@@ -10,9 +10,9 @@ import numpy as np
 import pandas as pd
 
 from vistac.dataset import FINGERS
+from vistac.dataset.ingest.config import UNITS, IngestCfg
 from vistac.dataset.schema import LABEL_COLUMNS
 from vistac.errors import UserError
-from vistac_sim.recording.ingest.config import UNITS, IngestCfg
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 MAX_LISTED_ERRORS = 20

@@ -9,8 +9,8 @@ from pathlib import Path
 from vistac.config import ConfigError, HelpFormatter, add_options, from_options
 from vistac.dataset import SplitCfg
 from vistac.dataset.files import check_out_dir
+from vistac.dataset.ingest.config import ColumnMap, IngestCfg, IngestSources
 from vistac.errors import UserError
-from vistac_sim.recording.ingest.config import ColumnMap, IngestCfg, IngestSources
 
 SOURCE_OPTIONS = ("recordings", "images", "labels", "labels_sheet")
 CFG_OPTIONS = ("threshold", "unit")

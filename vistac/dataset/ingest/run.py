@@ -19,6 +19,19 @@ from vistac.dataset import (
     press_row,
     unit_labels,
 )
+from vistac.dataset.ingest.config import IngestCfg, IngestSources
+from vistac.dataset.ingest.preprocess import REASONS, Grasp, preprocess
+from vistac.dataset.ingest.readers import (
+    IMAGE_SUFFIXES,
+    config_ids,
+    data_line,
+    files_by_stem,
+    match_names,
+    raise_all,
+    read_label_sheet,
+    read_objects_csv,
+    read_recording,
+)
 from vistac.dataset.schema import (
     CONFIGS,
     IMAGES,
@@ -30,19 +43,6 @@ from vistac.dataset.schema import (
 )
 from vistac.errors import UserError
 from vistac.folder_lock import hold
-from vistac_sim.recording.ingest.config import IngestCfg, IngestSources
-from vistac_sim.recording.ingest.preprocess import REASONS, Grasp, preprocess
-from vistac_sim.recording.ingest.readers import (
-    IMAGE_SUFFIXES,
-    config_ids,
-    data_line,
-    files_by_stem,
-    match_names,
-    raise_all,
-    read_label_sheet,
-    read_objects_csv,
-    read_recording,
-)
 
 
 def ingest(src: IngestSources, out: str | Path, cfg: IngestCfg | None = None) -> dict:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from vistac.config import Config, param
 from vistac.dataset import SplitCfg
-from vistac_sim.recording.layout import FORCE_COLUMNS
+from vistac.dataset.recordings import FORCE_COLUMNS
 
 UNITS = {"mN": 1e-3, "N": 1.0}  # unit of the CSV's force cells -> newtons
 

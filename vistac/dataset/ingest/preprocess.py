@@ -1,6 +1,6 @@
 """The study's tactile preprocessing, automatic: grasps, representative samples, rejections.
 
-See `vistac_sim.recording.ingest` for the steps and the rejection criteria (`REASONS`).
+See `vistac.dataset.ingest` for the steps and the rejection criteria (`REASONS`).
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vistac.dataset import FINGERS
-from vistac_sim.recording.ingest.config import IngestCfg
+from vistac.dataset.ingest.config import IngestCfg
 
 REASONS = ("too_short", "truncated", "saturated", "no_extremum", "below_resolution", "pulling")
 
