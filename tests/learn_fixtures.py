@@ -16,6 +16,8 @@ import cv2
 import numpy as np
 import pandas as pd
 
+from vistac.dataset import FORMAT_VERSION
+
 TABLE = (0.81, 0.81, 0.81)
 INDEX_RGB = (0.0, 0.85, 0.0)
 THUMB_RGB = (0.9, 0.0, 0.0)
@@ -164,7 +166,7 @@ def make_dataset(
     pd.DataFrame(rows).to_parquet(out / "configs.parquet", index=False)
     pd.DataFrame(presses).to_parquet(out / "presses.parquet", index=False)
     manifest = {
-        "format_version": 1,
+        "format_version": FORMAT_VERSION,
         "complete": complete,
         "seed": seed,
         "config": {

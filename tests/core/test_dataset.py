@@ -7,16 +7,25 @@ import shutil
 
 import numpy as np
 import pandas as pd
+import pyarrow as pa
+import pyarrow.parquet as pq
 import pytest
 from learn_fixtures import make_dataset
 
 from vistac.dataset import FINGERS, open_dataset, press_row, press_rows, unit_labels
 from vistac.dataset.schema import (
+    FAILED_OBJECTS_TYPE,
     FORMAT_VERSION,
     LABEL_COLUMNS,
+    REDRAWS_TYPE,
     box_columns,
+    failed_object_counts,
+    failed_objects_cell,
     force_columns,
     label_columns,
+    redraw_cell,
+    redraw_counts,
+    with_declared_types,
 )
 from vistac.errors import UserError
 
@@ -134,3 +143,32 @@ def test_manifest_must_be_json(tmp_path, ds_dir):
     (d / "manifest.json").write_text(json.dumps({"complete": True,
                                                  "format_version": FORMAT_VERSION}))
     assert len(open_dataset(d).configs) == 8
+
+
+def test_nested_cells_round_trip_through_parquet(tmp_path):
+    """`redraw_reasons` and `failed_objects` are native lists of structs: an empty cell keeps
+    the declared type, and pyarrow and pandas give back the counts that were written."""
+    redraws = [{}, {"unreachable": 3, "fingers_overlap": 1}]
+    failed = [{}, {"box_2": {"unreachable": 5}, "ring_0": {"slipped": 2, "unreachable": 1}}]
+    rows = [{"config_id": i, "redraw_reasons": redraw_cell(r), "failed_objects":
+             failed_objects_cell(f)} for i, (r, f) in enumerate(zip(redraws, failed, strict=True))]
+    for part in (rows[:1], rows):  # a table of empty cells alone still has the declared types
+        table = with_declared_types(pa.Table.from_pylist(part))
+        assert table.schema.field("redraw_reasons").type == REDRAWS_TYPE
+        assert table.schema.field("failed_objects").type == FAILED_OBJECTS_TYPE
+    pq.write_table(table, tmp_path / "t.parquet")
+    assert pq.read_schema(tmp_path / "t.parquet").field("redraw_reasons").type == REDRAWS_TYPE
+    frame = pd.read_parquet(tmp_path / "t.parquet")
+    for i in range(2):
+        assert redraw_counts(frame["redraw_reasons"][i]) == redraws[i]
+        assert failed_object_counts(frame["failed_objects"][i]) == failed[i]
+    assert [c["reason"] for c in rows[1]["redraw_reasons"]] == ["fingers_overlap", "unreachable"]
+
+
+def test_older_format_version_is_refused_in_one_line(tmp_path, ds_dir):
+    d = _copy(ds_dir, tmp_path / "old")
+    man = json.loads((d / "manifest.json").read_text())
+    (d / "manifest.json").write_text(json.dumps(man | {"format_version": FORMAT_VERSION - 1}))
+    with pytest.raises(UserError, match="make the dataset again with this vistac") as err:
+        open_dataset(d)
+    assert "\n" not in str(err.value)

@@ -6,14 +6,22 @@ import signal
 import subprocess
 import sys
 import time
+from collections import Counter
 
 import cv2
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 import pytest
 
 from vistac.cli import main
-from vistac.dataset import open_dataset
+from vistac.dataset import FORMAT_VERSION, open_dataset
+from vistac.dataset.schema import (
+    FAILED_OBJECTS_TYPE,
+    REDRAWS_TYPE,
+    failed_object_counts,
+    redraw_counts,
+)
 from vistac.errors import UserError
 from vistac_sim.generate.shards import SHARD
 
@@ -32,10 +40,30 @@ def _gen(out, *extra):
     return main(["generate", "--out", str(out), "--no-progress", *extra])
 
 
+def test_redraw_columns_are_native_and_add_up(small_dataset):
+    """The nested bookkeeping columns read back as counts that sum to the manifest's."""
+    t = open_dataset(small_dataset)
+    schema = pq.read_schema(small_dataset / "configs.parquet")
+    assert schema.field("redraw_reasons").type == REDRAWS_TYPE
+    assert schema.field("failed_objects").type == FAILED_OBJECTS_TYPE
+    counts = [redraw_counts(c) for c in t.configs["redraw_reasons"]]
+    assert [sum(c.values()) for c in counts] == t.configs["redraws"].tolist()
+    total = sum(counts, Counter())
+    for cell in t.configs["failed_objects"]:
+        for c in failed_object_counts(cell).values():
+            total += c
+    by_object = Counter()
+    for o in t.manifest["per_object"]:
+        if o["status"] == "used":
+            by_object.update(o["rejections"])
+    assert dict(by_object) == dict(total)
+    assert t.manifest["redraws"]["total"] == t.configs["redraws"].sum()
+
+
 def test_dataset_matches_contract(small_dataset):
     t = open_dataset(small_dataset)
     manifest, configs, presses = t.manifest, t.configs, t.presses
-    assert manifest["complete"] and manifest["format_version"] == 1
+    assert manifest["complete"] and manifest["format_version"] == FORMAT_VERSION
     assert manifest["config"]["effects"]["noise"] == 0.05 and manifest["seed"] == 1
     assert {"mujoco", "numpy", "vistac"} <= set(manifest["versions"])
     assert [e["name"] for e in manifest["effects"]] == ["force_noise"]

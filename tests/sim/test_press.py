@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from hard_cases import KNOWN_REASONS
 
+from vistac.dataset.schema import redraw_counts
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.scenes import ObjectScene, solve
 from vistac_sim.geometry import angle_deg
@@ -121,8 +122,8 @@ def test_noise_only_repeats_share_one_physics_solve(monkeypatch):
     for cid in range(6):
         calls.clear()
         c = make_configuration(cid, 0, scenes, cfg, build_pipeline(cfg.effects))
-        reasons = dict(item.split(":") for item in filter(None, c.row["redraw_reasons"].split(",")))
-        solved_rejects = sum(int(v) for k, v in reasons.items() if k not in sampler_reasons)
+        reasons = redraw_counts(c.row["redraw_reasons"])
+        solved_rejects = sum(v for k, v in reasons.items() if k not in sampler_reasons)
         assert len(calls) == 1 + solved_rejects  # one solve for all six noisy repeats
         assert len({p["force_index_y"] for p in c.presses}) == cfg.repeats
     scenes.close()

@@ -8,9 +8,14 @@ learner agree on one spelling.
 
 from __future__ import annotations
 
-import numpy as np
+from collections import Counter
+from collections.abc import Iterable, Mapping
 
-FORMAT_VERSION = 1
+import numpy as np
+import pyarrow as pa
+
+FORMAT_VERSION = 2
+"""2: `redraw_reasons` and `failed_objects` are Parquet lists of structs (1: text cells)."""
 MANIFEST = "manifest.json"
 CONFIGS = "configs.parquet"
 PRESSES = "presses.parquet"
@@ -93,3 +98,45 @@ def press_row(config_id: int, repeat: int, force: np.ndarray, label: np.ndarray)
     row = press_rows(config_id, np.asarray(force)[None], np.asarray(label)[None])[0]
     row["repeat"] = repeat
     return row
+
+
+REDRAWS_TYPE = pa.list_(pa.struct([("reason", pa.string()), ("count", pa.int64())]))
+"""A `redraw_reasons` cell: rejected grasp draws by reason, sorted by reason."""
+FAILED_OBJECTS_TYPE = pa.list_(pa.struct([("object_id", pa.string()), ("redraws", REDRAWS_TYPE)]))
+"""A `failed_objects` cell: the objects that gave no valid grasp, sorted by id, with their
+rejected draws."""
+NESTED_COLUMNS = {"redraw_reasons": REDRAWS_TYPE, "failed_objects": FAILED_OBJECTS_TYPE}
+"""The configs columns of nested type: their type is declared, not inferred from the rows (an
+empty list has no item type to infer)."""
+
+
+def redraw_cell(counts: Mapping[str, int]) -> list[dict]:
+    """The `redraw_reasons` cell of draw counts by reason."""
+    return [{"reason": k, "count": int(v)} for k, v in sorted(counts.items())]
+
+
+def failed_objects_cell(failed: Mapping[str, Mapping[str, int]]) -> list[dict]:
+    """The `failed_objects` cell of draw counts by reason, by object id."""
+    return [{"object_id": k, "redraws": redraw_cell(v)} for k, v in sorted(failed.items())]
+
+
+def redraw_counts(cell: Iterable[Mapping] | None) -> Counter:
+    """Draw counts by reason of a `redraw_reasons` cell (as pyarrow or pandas give it)."""
+    return Counter({item["reason"]: int(item["count"]) for item in (cell if cell is not None
+                                                                     else ())})
+
+
+def failed_object_counts(cell: Iterable[Mapping] | None) -> dict[str, Counter]:
+    """Draw counts by reason, by object id, of a `failed_objects` cell."""
+    return {item["object_id"]: redraw_counts(item["redraws"])
+            for item in (cell if cell is not None else ())}
+
+
+def with_declared_types(table: pa.Table) -> pa.Table:
+    """`table` with its `NESTED_COLUMNS` cast to their declared types."""
+    schema = table.schema
+    for name, typ in NESTED_COLUMNS.items():
+        i = schema.get_field_index(name)
+        if i >= 0 and schema.field(i).type != typ:
+            schema = schema.set(i, pa.field(name, typ))
+    return table if schema == table.schema else table.cast(schema)

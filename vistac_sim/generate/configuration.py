@@ -14,7 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from vistac.dataset import FINGERS, press_rows, unit_labels
-from vistac.dataset.schema import box_columns, clean_force_columns, normal_columns
+from vistac.dataset.schema import (
+    box_columns,
+    clean_force_columns,
+    failed_objects_cell,
+    normal_columns,
+    redraw_cell,
+)
 from vistac_sim.effects.registry import Pipeline
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.scenes import NoValidGrasp, ObjectScene, SceneCache, draw_grasp
@@ -125,10 +131,8 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     row = _config_row(config_id, scene.obj, grasp, res, clean, normal, boxes, cfg)
     row["scene_effect_fallbacks"] = fallbacks  # repeats that kept the unperturbed force
     row["redraws"] = int(sum(redraws.values()))
-    row["redraw_reasons"] = ",".join(f"{k}:{v}" for k, v in sorted(redraws.items()))
-    row["failed_objects"] = json.dumps({k: dict(sorted(v.items())) for k, v in failed.items()})
-    if not failed:
-        row["failed_objects"] = ""
+    row["redraw_reasons"] = redraw_cell(redraws)
+    row["failed_objects"] = failed_objects_cell(failed)
     row |= view_cols
     return Configuration(
         row=row,

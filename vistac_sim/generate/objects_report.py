@@ -12,13 +12,13 @@ and the rejected draws by reason; `format_summary` prints it at the end of a run
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from collections.abc import Iterable, Mapping
 
 import numpy as np
 from tqdm import tqdm
 
+from vistac.dataset.schema import failed_object_counts, redraw_counts
 from vistac.errors import UserError
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.objects.specs import ObjectSpec
@@ -66,13 +66,6 @@ def screen_objects(specs: list[ObjectSpec], cfg: GenerateCfg,
     return kept, skipped, repairs
 
 
-def redraw_counts(text: str) -> Counter:
-    """The rejected draws of one configuration by reason, from its `redraw_reasons` cell
-    (``"reason:count,reason:count"``)."""
-    return Counter({name: int(count) for name, count in
-                    (item.split(":") for item in filter(None, text.split(",")))})
-
-
 def object_summary(configs: Mapping[str, np.ndarray], press_config_ids: np.ndarray,
                    objects: list[dict], skipped: list[dict],
                    repairs: dict[str, list[str]] | None = None) -> list[dict]:
@@ -93,14 +86,14 @@ def object_summary(configs: Mapping[str, np.ndarray], press_config_ids: np.ndarr
     n_configs: Counter = Counter()
     n_presses: Counter = Counter()
     rejections: dict[str, Counter] = {o["object_id"]: Counter() for o in objects}
-    for cid, oid, text in zip(np.asarray(configs["config_id"]).tolist(),
+    for cid, oid, cell in zip(np.asarray(configs["config_id"]).tolist(),
                               np.asarray(configs["object_id"]).tolist(),
-                              np.asarray(configs["redraw_reasons"]).tolist(), strict=True):
+                              configs["redraw_reasons"], strict=True):
         n_configs[oid] += 1
         n_presses[oid] += presses_of.get(cid, 0)
-        rejections[oid].update(redraw_counts(text))
-    for text in np.asarray(configs["failed_objects"]).tolist():
-        for oid, counts in (json.loads(text) if text else {}).items():
+        rejections[oid].update(redraw_counts(cell))
+    for cell in configs["failed_objects"]:
+        for oid, counts in failed_object_counts(cell).items():
             rejections.setdefault(oid, Counter()).update(counts)
     rows = []
     for o in objects:

@@ -28,7 +28,15 @@ from vistac.dataset.files import (
     write_row_groups,
 )
 from vistac.dataset.recordings import recording_name
-from vistac.dataset.schema import CONFIGS, IMAGES, MASKS, PARTIAL, PRESSES
+from vistac.dataset.schema import (
+    CONFIGS,
+    IMAGES,
+    MASKS,
+    PARTIAL,
+    PRESSES,
+    redraw_counts,
+    with_declared_types,
+)
 from vistac.errors import UserError
 from vistac_sim.generate.verify import damaged_files, read_run_state
 
@@ -45,7 +53,7 @@ def shard_paths(out: Path, chunk: int) -> tuple[Path, Path]:
 
 def write_shard(path: Path, rows: list[dict]) -> None:
     """Write one shard table from its rows, atomically (a temporary file, then a rename)."""
-    table = pa.Table.from_pylist(rows)
+    table = with_declared_types(pa.Table.from_pylist(rows))
     tmp = temporary_path(path)
     try:
         with pa.OSFile(str(tmp), "wb") as fh, pa.ipc.new_file(fh, table.schema) as writer:
@@ -183,6 +191,15 @@ _BOOKKEEPING = ["config_id", "object_id", "object_family", "redraw_reasons", "fa
 """The configs columns the manifest's counts and per-object summary are made from."""
 
 
+def _numpy_copy(column: pa.ChunkedArray) -> np.ndarray:
+    """A column as a NumPy array that holds no Arrow buffer (nested cells as Python lists)."""
+    if pa.types.is_nested(column.type):
+        cells = np.empty(len(column), dtype=object)
+        cells[:] = column.to_pylist()
+        return cells
+    return np.array(column.to_numpy(zero_copy_only=False))
+
+
 def _read_shard(path: Path, schema: pa.Schema) -> pa.Table:
     """One shard's table, in `schema` (a column missing from the shard is null)."""
     with pa.OSFile(str(path)) as fh:
@@ -259,7 +276,7 @@ def finalize(out: Path, n_chunks: int, n: int, manifest: dict, split_by: str, fr
             configs = _read_shard(cpath, schemas[0])
             buckets[0].add(configs)
             for c in _BOOKKEEPING:
-                kept[c].append(np.array(configs[c].to_numpy(zero_copy_only=False)))
+                kept[c].append(_numpy_copy(configs[c]))
             presses = _read_shard(ppath, schemas[1])
             buckets[1].add(presses)
             pressed.append(np.array(presses["config_id"].to_numpy()))
@@ -285,11 +302,11 @@ def finalize(out: Path, n_chunks: int, n: int, manifest: dict, split_by: str, fr
     write_row_groups(out / PRESSES, schemas[1], buckets[1].sorted(["config_id", "repeat"]))
     counts = {**table_counts(split_of, cols["object_id"], n_presses),
               "families": dict(Counter(cols["object_family"].tolist()))}
-    from vistac_sim.generate.objects_report import object_summary, redraw_counts
+    from vistac_sim.generate.objects_report import object_summary
 
     reasons: Counter = Counter()
-    for text in cols["redraw_reasons"].tolist():
-        reasons.update(redraw_counts(text))
+    for cell in cols["redraw_reasons"]:
+        reasons.update(redraw_counts(cell))
 
     per_object = object_summary(cols, press_config_ids,
                                 manifest.get("objects", []),
