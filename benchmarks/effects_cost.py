@@ -30,18 +30,18 @@ from vistac_sim.effects.placement_error import PlacementErrorCfg
 from vistac_sim.effects.registry import Pipeline, build_pipeline
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.configuration import make_configuration
+from vistac_sim.generate.rigs import RigCache
 from vistac_sim.generate.run import generate, object_specs
-from vistac_sim.generate.scenes import SceneCache
 
 
 @contextlib.contextmanager
 def bypassed_pipeline():
     """Pipeline stages as constant no-ops for the duration of the block."""
-    saved = {k: Pipeline.__dict__[k] for k in ("changes_physics", "needs_series", "apply_scene",
+    saved = {k: Pipeline.__dict__[k] for k in ("changes_physics", "needs_series", "apply_grasp",
                                                "apply_force", "apply_sensor", "apply_image")}
     Pipeline.changes_physics = property(lambda self: False)
     Pipeline.needs_series = property(lambda self: False)
-    Pipeline.apply_scene = lambda self, grasp, rng: grasp
+    Pipeline.apply_grasp = lambda self, grasp, rng: grasp
     Pipeline.apply_force = lambda self, forces, rng: forces
     Pipeline.apply_sensor = lambda self, series, dt, rng: series
     Pipeline.apply_image = lambda self, view, rng: view
@@ -91,7 +91,7 @@ def paired_overhead(n: int, seed: int, rounds: int) -> tuple[float, float]:
     alternating per configuration (so that load changes on a shared machine hit both alike)."""
     c = GenerateCfg(n=n, seed=seed)
     specs, _ = object_specs(c, seed)
-    scenes = SceneCache(specs, c, size=64)
+    scenes = RigCache(specs, c, size=64)
     pipeline = build_pipeline(c.effects)
     total = {"disabled": 0.0, "bypassed": 0.0}
     try:

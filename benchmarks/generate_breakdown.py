@@ -20,7 +20,7 @@ from pathlib import Path
 # part -> (file name, function name) whose cumulative times add up to it; order = table order.
 PARTS: dict[str, list[tuple[str, str]]] = {
     "object build (meshes, convex pieces)": [("library.py", "build_object")],
-    "scene compile (MjSpec, MjData)": [("model.py", "compile_scene"), ("press.py", "__init__")],
+    "scene compile (MjSpec, MjData)": [("model.py", "compile_model"), ("press.py", "__init__")],
     "renderer set-up": [("topview.py", "__init__")],
     "grasp sampling (and redraws)": [("grasps.py", "sample")],
     "settle (mj_step, mj_forward)": [("~", "<built-in method mujoco._functions.mj_step>"),
@@ -28,10 +28,10 @@ PARTS: dict[str, list[tuple[str, str]]] = {
     "press pose, force read, checks": [("press.py", "pose"), ("press.py", "_read"),
                                        ("checks.py", "check_physics")],
     "surface normals (labels' reference)": [("normals.py", "surface_normals")],
-    "render (MuJoCo, 227 px)": [("topview.py", "render"), ("view_render.py", "render_view")],
-    "finger boxes": [("topview.py", "finger_boxes"), ("view_render.py", "view_boxes")],
+    "render (MuJoCo, 227 px)": [("topview.py", "render"), ("shot_render.py", "render_shot")],
+    "finger boxes": [("topview.py", "finger_boxes"), ("shot_render.py", "shot_boxes")],
     "effects (force, scene, sensor)": [("registry.py", "apply_force"),
-                                       ("registry.py", "apply_scene"),
+                                       ("registry.py", "apply_grasp"),
                                        ("session.py", "simulate_session")],
     "PNG encode": [("png.py", "encode_png")],
     "image write": [("files.py", "atomic_write_bytes"), ("pathlib.py", "write_bytes"),

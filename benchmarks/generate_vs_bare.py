@@ -48,7 +48,7 @@ def _bare_worker(args: tuple[int, int, int, str, int]) -> int:
     import numpy as np
 
     from vistac_sim.generate.config import GenerateCfg
-    from vistac_sim.generate.scenes import ObjectScene, draw_grasp
+    from vistac_sim.generate.rigs import ObjectRig, draw_grasp
     from vistac_sim.mj import mujoco
     from vistac_sim.objects.library import build_object, procedural_library
     from vistac_sim.render.png import encode_png
@@ -57,7 +57,7 @@ def _bare_worker(args: tuple[int, int, int, str, int]) -> int:
     cfg = GenerateCfg(seed=seed)
     scenes, grasps = [], []
     for spec in procedural_library(cfg.objects, seed)[worker::workers]:
-        scene = ObjectScene(build_object(spec, cfg.hand.height), cfg)
+        scene = ObjectRig(build_object(spec, cfg.hand.height), cfg)
         grasp = draw_grasp(scene, np.random.default_rng(0), cfg)[0]  # found before the loop
         scenes.append(scene)
         grasps.append(grasp)
@@ -109,7 +109,7 @@ def _children_cpu() -> float:
 
 # modules a bare worker uses: imported once by the fork server its workers fork from, as
 # generate's workers are (`vistac_sim.generate.processes.worker_context`)
-BARE_PRELOAD = ["vistac_sim.generate.config", "vistac_sim.generate.scenes",
+BARE_PRELOAD = ["vistac_sim.generate.config", "vistac_sim.generate.rigs",
                 "vistac_sim.objects.library", "vistac_sim.render.png", "vistac_sim.mj"]
 
 

@@ -29,8 +29,8 @@ from pathlib import Path
 from vistac_sim.effects import build_pipeline
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.configuration import make_configuration
+from vistac_sim.generate.rigs import RigCache
 from vistac_sim.generate.run import generate, object_specs
-from vistac_sim.generate.scenes import SceneCache
 from vistac_sim.render.config import RenderCfg
 
 RESULTS = Path(__file__).parent / "results"
@@ -49,7 +49,7 @@ def paired(n: int, seed: int, rounds: int) -> dict[str, dict[str, float]]:
     cfgs["photo, no shadows"] = config("photo", n, seed, shadows=None)
     cfgs["photo, no shadows, no JPEG"] = config("photo", n, seed, shadows=None, jpeg=None)
     specs, _ = object_specs(cfgs["clean"], seed)
-    scenes = {p: SceneCache(specs, c, size=64) for p, c in cfgs.items()}
+    scenes = {p: RigCache(specs, c, size=64) for p, c in cfgs.items()}
     pipes = {p: build_pipeline(c.effects) for p, c in cfgs.items()}
     total = {p: {"cpu": 0.0, "wall": 0.0} for p in cfgs}
     try:

@@ -22,8 +22,8 @@ import numpy as np
 import vistac_sim.generate.configuration as configuration
 from vistac_sim.effects import build_pipeline
 from vistac_sim.generate.config import GenerateCfg
+from vistac_sim.generate.rigs import RigCache
 from vistac_sim.generate.run import object_specs
-from vistac_sim.generate.scenes import SceneCache
 from vistac_sim.render.png import encode_png
 
 RESULTS = Path(__file__).parent / "results"
@@ -35,7 +35,7 @@ def frames(preset: str, n: int, seed: int) -> list[np.ndarray]:
     them (caught at its `encode_png` call)."""
     cfg = GenerateCfg.from_preset(preset, n=n, seed=seed)
     specs, _ = object_specs(cfg, seed)
-    scenes, pipeline = SceneCache(specs, cfg, size=64), build_pipeline(cfg.effects)
+    scenes, pipeline = RigCache(specs, cfg, size=64), build_pipeline(cfg.effects)
     caught: list[np.ndarray] = []
     real = configuration.encode_png
 

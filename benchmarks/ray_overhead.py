@@ -180,15 +180,15 @@ def driver_chunk_cost(chunk_size: int, repeats: int, out: Path) -> dict[str, flo
     from vistac.dataset.schema import IMAGES, PARTIAL
     from vistac_sim.effects import build_pipeline
     from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.generate.rigs import RigCache
     from vistac_sim.generate.run import object_specs, plan_chunks
-    from vistac_sim.generate.scenes import SceneCache
     from vistac_sim.generate.worker import commit_chunk, make_chunk
     from vistac_sim.objects.decomposition import default_cache_dir
 
     cfg = apply(GenerateCfg(n=chunk_size, seed=7), {"objects": {"n_objects": 1}})
     specs, _ = object_specs(cfg, cfg.seed)
     (chunk,) = plan_chunks(cfg.n, cfg.seed, len(specs), chunk_size)
-    scenes = SceneCache(specs, cfg, size=1, cache_dir=default_cache_dir())
+    scenes = RigCache(specs, cfg, size=1, cache_dir=default_cache_dir())
     made = make_chunk(chunk, cfg, scenes, build_pipeline(cfg.effects))
     scenes.close()
     blob = pickle.dumps(made, protocol=5)

@@ -14,7 +14,7 @@ owns it (`PhysicsCfg`, `RenderCfg`, `GenerateCfg`; the decomposition threshold f
   pieces at several thresholds instead of their exact convex pieces (the reference). Same error.
 - image size: what the image shows of the finger: the finger's box in a segmentation render
   against its exact box, in mm on the table. Labels do not depend on the image.
-- repeats: under the `lab` preset (scene effects: one solve per repeat), the angle between the
+- repeats: under the `lab` preset (grasp effects: one solve per repeat), the angle between the
   mean label of k repeats and the mean of `--ref-repeats` repeats (the cone's centre).
 
 Seconds per sample are CPU seconds (`time.process_time`: robust to other jobs on the machine)
@@ -40,9 +40,9 @@ from vistac.dataset import unit_labels
 from vistac_sim.effects import build_pipeline
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.configuration import ConfigStreams
-from vistac_sim.generate.scenes import ObjectScene, draw_grasp, solve
+from vistac_sim.generate.rigs import ObjectRig, draw_grasp, solve
 from vistac_sim.objects.decomposition import convex_decomposition, default_cache_dir
-from vistac_sim.objects.library import SceneObject, build_object, procedural_library
+from vistac_sim.objects.library import BuiltObject, build_object, procedural_library
 from vistac_sim.objects.outlines import CONCAVE_FAMILIES
 from vistac_sim.objects.specs import object_index
 from vistac_sim.physics.checks import RejectedSample
@@ -71,9 +71,9 @@ def angle_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class Configs:
     """The benchmark's configurations: per config, its object index and the drawn grasp."""
 
-    def __init__(self, n: int, cfg: GenerateCfg, objects: list[SceneObject]):
+    def __init__(self, n: int, cfg: GenerateCfg, objects: list[BuiltObject]):
         self.cfg, self.objects = cfg, objects
-        scenes = [ObjectScene(o, cfg, render=False) for o in objects]
+        scenes = [ObjectRig(o, cfg, render=False) for o in objects]
         self.items = []
         for cid in range(n):
             k = object_index(cfg.seed, cid, len(objects))
@@ -84,10 +84,10 @@ class Configs:
             self.items.append((k, grasp))
 
 
-def press_all(configs: Configs, cfg: GenerateCfg, objects: list[SceneObject] | None = None
+def press_all(configs: Configs, cfg: GenerateCfg, objects: list[BuiltObject] | None = None
               ) -> tuple[np.ndarray, float]:
     """(n, 2, 2) clean unit labels (NaN where the setting rejects the grasp), CPU s per press."""
-    scenes = [ObjectScene(o, cfg, render=False) for o in (objects or configs.objects)]
+    scenes = [ObjectRig(o, cfg, render=False) for o in (objects or configs.objects)]
     labels = np.full((len(configs.items), 2, 2), np.nan)
     t0 = time.process_time()
     for i, (k, grasp) in enumerate(configs.items):
@@ -155,7 +155,7 @@ def decomposition_panel(n: int, cfg: GenerateCfg, n_objects: int) -> list[dict]:
              "default": False, "s_per_sample": ref_t, **label_error(ref, ref)}]
     for t in THRESHOLDS:
         t0 = time.process_time()
-        objs = [SceneObject(o.spec, o.mesh, convex_decomposition(o.mesh, default_cache_dir(), t),
+        objs = [BuiltObject(o.spec, o.mesh, convex_decomposition(o.mesh, default_cache_dir(), t),
                             o.section, o.rgb) for o in exact]
         made = time.process_time() - t0
         labels, sec = press_all(configs, cfg, objs)
@@ -172,7 +172,7 @@ def image_panel(configs: Configs, cfg: GenerateCfg) -> list[dict]:
     for f in SIZE_FACTORS:
         c = copy.deepcopy(cfg)
         c.render.image_size = int(round(cfg.render.image_size * f))
-        scenes = [ObjectScene(o, c) for o in configs.objects]
+        scenes = [ObjectRig(o, c) for o in configs.objects]
         errs, cpu = [], 0.0
         for k, grasp in configs.items:
             sc = scenes[k]
@@ -209,7 +209,7 @@ def repeats_panel(configs: Configs, cfg: GenerateCfg, ref_repeats: int) -> list[
     lab = GenerateCfg.from_preset("lab")
     c = dataclasses.replace(copy.deepcopy(cfg), effects=lab.effects, recording=lab.recording)
     pipeline = build_pipeline(c.effects)
-    scenes = [ObjectScene(o, c, render=False) for o in configs.objects]
+    scenes = [ObjectRig(o, c, render=False) for o in configs.objects]
     kmax = ref_repeats + max(REPEATS)  # the reference's presses are not reused
     labels = np.full((len(configs.items), kmax, 2, 2), np.nan)
     cpu = []
@@ -220,8 +220,8 @@ def repeats_panel(configs: Configs, cfg: GenerateCfg, ref_repeats: int) -> list[
         for _ in range(kmax):
             for _try in range(10):
                 try:
-                    forces.append(scenes[k].press.run(pipeline.apply_scene(grasp,
-                                                      rng["scene_effects"])).force_sensor)
+                    forces.append(scenes[k].press.run(pipeline.apply_grasp(grasp,
+                                                      rng["grasp_effects"])).force_sensor)
                     break
                 except RejectedSample:
                     continue

@@ -4,7 +4,7 @@ fingertip force labels written as datasets.
 Sub-packages follow the data's way through `vistac generate`:
 
 - `objects`: procedural outlines and user meshes, with convex collision pieces;
-- `scene`: the hand's MJCF asset edited per config, the object added, compiled; grasps;
+- `hand`: the hand's MJCF asset edited per config, the object added, compiled; grasps;
 - `physics`: the press, its checks and the surface-normal look-up;
 - `render`: the orthographic top view, exact finger boxes, PNG encoding, effect views;
 - `effects`: the effect registry and one small module per effect, presets and scene files;

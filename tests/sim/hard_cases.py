@@ -21,12 +21,12 @@ from shapely.ops import unary_union
 
 from vistac.dataset import unit_labels
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import ObjectScene, solve
+from vistac_sim.generate.rigs import ObjectRig, solve
 from vistac_sim.geometry import angle_deg, unit
-from vistac_sim.objects.library import ObjectSpec, SceneObject, extruded_object
+from vistac_sim.hand.grasp import Grasp
+from vistac_sim.objects.library import BuiltObject, ObjectSpec, extruded_object
 from vistac_sim.objects.meshes import mesh_section, scale_to_footprint
 from vistac_sim.physics.checks import RejectedSample
-from vistac_sim.scene.grasp import Grasp
 
 # Every rejection reason of grasp sampling, the press and the physical checks.
 KNOWN_REASONS = {"unreachable", "no_opposing_thumb", "fingers_overlap", "start_penetrates",
@@ -55,7 +55,7 @@ class Outcome:
     penetration: np.ndarray | None = None
 
 
-CASES: dict[str, Callable[[GenerateCfg], tuple[SceneObject, Grasp]]] = {}
+CASES: dict[str, Callable[[GenerateCfg], tuple[BuiltObject, Grasp]]] = {}
 
 
 def case(name: str):
@@ -71,7 +71,7 @@ def _grasp(targets, normals, approaches) -> Grasp:
                  unit(np.asarray(approaches, float)))
 
 
-def _extrusion(name: str, poly, height: float = 0.04) -> SceneObject:
+def _extrusion(name: str, poly, height: float = 0.04) -> BuiltObject:
     return extruded_object(ObjectSpec(name, "hard_case", 0, 0.0, height), poly)
 
 
@@ -88,7 +88,7 @@ def _grazing(cfg):
         approach=unit(np.array([[-np.cos(ang), np.sin(ang)], [1.0, 0.0]])))
 
 
-def _wall_push(push_deg: float) -> tuple[SceneObject, Grasp]:
+def _wall_push(push_deg: float) -> tuple[BuiltObject, Grasp]:
     """The 50 mm box; the index pushes its +x face `push_deg` off the normal (yaw), the thumb
     pushes the -x face along its normal."""
     a = np.radians(push_deg)
@@ -169,10 +169,10 @@ def _dense_mesh(cfg):
 
 
 @functools.lru_cache(maxsize=2)
-def _icosphere_327k(finger_height: float) -> SceneObject:
+def _icosphere_327k(finger_height: float) -> BuiltObject:
     mesh = scale_to_footprint(trimesh.creation.icosphere(subdivisions=7), 0.05)  # 327,680 faces
     section = mesh_section(mesh, finger_height, "icosphere")
-    return SceneObject(ObjectSpec("icosphere_327k", "hard_case", 0, 0.05, 0.05), mesh,
+    return BuiltObject(ObjectSpec("icosphere_327k", "hard_case", 0, 0.05, 0.05), mesh,
                        [mesh.convex_hull], section, (0.25, 0.3, 0.7))
 
 
@@ -186,7 +186,7 @@ def run_case(name: str, cfg: GenerateCfg | None = None) -> Outcome:
     """Build and press one named hard case; never raises for a rejected grasp."""
     cfg = copy.deepcopy(cfg or GenerateCfg())  # a case may edit its own copy (the drive)
     obj, grasp = CASES[name](cfg)
-    scene = ObjectScene(obj, cfg, render=False)
+    scene = ObjectRig(obj, cfg, render=False)
     try:
         scene.sampler.check(grasp)
         res, normal = solve(scene, grasp, cfg)

@@ -9,10 +9,10 @@ from vistac_sim.effects.placement_error import PlacementError, PlacementErrorCfg
 from vistac_sim.effects.registry import Pipeline
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.configuration import make_configuration
-from vistac_sim.generate.scenes import SceneCache
+from vistac_sim.generate.rigs import RigCache
+from vistac_sim.hand.grasp import Grasp
 from vistac_sim.objects.library import procedural_library
 from vistac_sim.physics import press
-from vistac_sim.scene.grasp import Grasp
 
 
 def _forces(k: int) -> np.ndarray:
@@ -72,7 +72,7 @@ def test_placement_error_jitters_targets_and_turns_approaches():
 def scenes():
     cfg = GenerateCfg()
     specs = procedural_library(cfg.objects, 0)[:2]
-    cache = SceneCache(specs, cfg)
+    cache = RigCache(specs, cfg)
     yield cfg, cache
     cache.close()
 
@@ -96,7 +96,7 @@ def test_placement_error_reruns_the_physics_per_repeat_and_repeats_differ(scenes
     n_plain = len(calls)
     calls.clear()
     effect = PlacementError(PlacementErrorCfg(position_std=0.001, angle_std_deg=3.0))
-    pipe = Pipeline(scene=[effect])
+    pipe = Pipeline(grasp=[effect])
     jittered = make_configuration(3, 0, cache, cfg, pipe)
     assert len(calls) >= n_plain + cfg.repeats  # one more solve (at least) per repeat
     moved = calls[n_plain:]

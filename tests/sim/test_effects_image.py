@@ -17,12 +17,12 @@ from vistac_sim.effects.registry import build_pipeline
 from vistac_sim.effects.shadows import Shadows, ShadowsCfg, shadow_map_size
 from vistac_sim.effects.table import Table, TableCfg
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import ObjectScene
+from vistac_sim.generate.rigs import ObjectRig
 from vistac_sim.mj import mujoco
-from vistac_sim.render import view_render
+from vistac_sim.render import shot_render
+from vistac_sim.render.shot import CameraPose, Shot
+from vistac_sim.render.shot_render import GEOM, render_shot, shot_boxes
 from vistac_sim.render.topview import finger_boxes
-from vistac_sim.render.view import CameraPose, View
-from vistac_sim.render.view_render import GEOM, render_view, view_boxes
 
 FINGERS = ("index", "thumb")
 
@@ -36,7 +36,7 @@ def scenes():
         s.close()
 
 
-def seg_boxes(scene: ObjectScene, seg: np.ndarray) -> np.ndarray:
+def seg_boxes(scene: ObjectRig, seg: np.ndarray) -> np.ndarray:
     """(2, 4) pixel boxes of each finger's pixels in a segmentation image."""
     out = np.zeros((2, 4))
     for k, f in enumerate(FINGERS):
@@ -47,7 +47,7 @@ def seg_boxes(scene: ObjectScene, seg: np.ndarray) -> np.ndarray:
     return out
 
 
-def table_mask(scene: ObjectScene, seg: np.ndarray) -> np.ndarray:
+def table_mask(scene: ObjectRig, seg: np.ndarray) -> np.ndarray:
     table = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_GEOM, "table")
     return (seg[..., 1] == GEOM) & (seg[..., 0] == table)
 
@@ -55,12 +55,12 @@ def table_mask(scene: ObjectScene, seg: np.ndarray) -> np.ndarray:
 # ------------------------------------------------------------------------- the clean view
 def test_clean_view_renders_and_boxes_as_the_plain_path(scenes):
     cfg, ss = scenes
-    view = View.of(cfg.render)
+    view = Shot.of(cfg.render)
     assert view.px_per_m == pytest.approx(cfg.render.image_size / cfg.render.view_extent)
     for scene in ss:
         d = scene.press.data
-        np.testing.assert_array_equal(render_view(scene.view, d, view), scene.view.render(d))
-        np.testing.assert_allclose(view_boxes(scene.model, d, scene.ids, view),
+        np.testing.assert_array_equal(render_shot(scene.view, d, view), scene.view.render(d))
+        np.testing.assert_allclose(shot_boxes(scene.model, d, scene.ids, view),
                                    finger_boxes(scene.model, d, scene.ids, cfg.render),
                                    atol=1e-9)
         cols = view.columns()
@@ -76,11 +76,11 @@ def test_overlay_error_moves_drawn_finger_and_box_by_the_offset(scenes):
     qpos, xpos = d.qpos.copy(), d.geom_xpos.copy()
     effect = OverlayError(OverlayErrorCfg(offset_std=0.0, rotation_std_deg=0.0,
                                           offset=(0.004, -0.003)))
-    view = effect(View.of(cfg.render), np.random.default_rng(0))
+    view = effect(Shot.of(cfg.render), np.random.default_rng(0))
     s = view.px_per_m
     clean_seg = scene.view.render(d, segmentation=True)
-    seg = render_view(scene.view, d, view, segmentation=True)
-    boxes = view_boxes(scene.model, d, scene.ids, view)
+    seg = render_shot(scene.view, d, view, segmentation=True)
+    boxes = shot_boxes(scene.model, d, scene.ids, view)
     clean = finger_boxes(scene.model, d, scene.ids, cfg.render)
     for k, f in enumerate(FINGERS):
         ids = [scene.ids.pad[f], scene.ids.shaft[f]]
@@ -102,9 +102,9 @@ def test_overlay_rotation_boxes_match_segmentation(scenes):
     effect = OverlayError(OverlayErrorCfg(offset_std=0.002, rotation_std_deg=10.0,
                                           rotation_deg=15.0))
     for i, scene in enumerate(ss):
-        view = effect(View.of(cfg.render), np.random.default_rng(i))
-        seg = render_view(scene.view, scene.press.data, view, segmentation=True)
-        boxes = view_boxes(scene.model, scene.press.data, scene.ids, view)
+        view = effect(Shot.of(cfg.render), np.random.default_rng(i))
+        seg = render_shot(scene.view, scene.press.data, view, segmentation=True)
+        boxes = shot_boxes(scene.model, scene.press.data, scene.ids, view)
         np.testing.assert_allclose(boxes, seg_boxes(scene, seg), atol=1.5)
 
 
@@ -135,7 +135,7 @@ def test_camera_jitter_changes_projection_and_boxes_follow(scenes):
     effect = CameraJitter(CameraJitterCfg(shift_std=0.01, scale_std=0.1, tilt_std_deg=3.0,
                                           roll_std_deg=10.0))
     for i, scene in enumerate(ss):
-        view = effect(View.of(cfg.render), np.random.default_rng(10 + i))
+        view = effect(Shot.of(cfg.render), np.random.default_rng(10 + i))
         cols = view.columns()
         assert cols["px_per_m"] != pytest.approx(cfg.render.image_size / cfg.render.view_extent)
         assert cols["camera_tilt_deg"] > 0 and cols["camera_roll_deg"] != 0
@@ -144,10 +144,10 @@ def test_camera_jitter_changes_projection_and_boxes_follow(scenes):
         group = int(scene.model.geom_group[obj])
         scene.model.geom_group[obj] = 3
         try:
-            seg = render_view(scene.view, scene.press.data, view, segmentation=True)
+            seg = render_shot(scene.view, scene.press.data, view, segmentation=True)
         finally:
             scene.model.geom_group[obj] = group
-        boxes = view_boxes(scene.model, scene.press.data, scene.ids, view)
+        boxes = shot_boxes(scene.model, scene.press.data, scene.ids, view)
         np.testing.assert_allclose(boxes, seg_boxes(scene, seg), atol=1.5)
 
 
@@ -155,7 +155,7 @@ def test_camera_center_and_scale_are_what_the_image_shows(scenes):
     cfg, ss = scenes
     scene = ss[0]
     cam = CameraPose(center=(0.01, -0.02), scale=1.25)
-    view = dataclasses.replace(View.of(cfg.render), camera=cam)
+    view = dataclasses.replace(Shot.of(cfg.render), camera=cam)
     tip = scene.press.data.site_xpos[scene.ids.site["index"]]
     u, v = view.project(tip)
     s = cfg.render.image_size / cfg.render.view_extent * 1.25
@@ -173,8 +173,8 @@ def test_lighting_direction_and_intensity_set_table_brightness(scenes):
         eff = Lighting(LightingCfg(elevation_deg=(el, el), azimuth_deg=(0, 0),
                                    intensity=(diffuse, diffuse), ambient=(ambient, ambient),
                                    specular=0.0))
-        view = eff(View.of(cfg.render), np.random.default_rng(0))
-        return np.median(render_view(scene.view, scene.press.data, view)[mask], axis=0)
+        view = eff(Shot.of(cfg.render), np.random.default_rng(0))
+        return np.median(render_shot(scene.view, scene.press.data, view)[mask], axis=0)
 
     top, low, dim = table_level(90, 0.5, 0.4), table_level(30, 0.5, 0.4), table_level(90, 0.2, 0.4)
     rgb = np.array(cfg.render.table_rgb) * 255
@@ -190,20 +190,20 @@ def test_table_colour_and_texture_only_on_table_pixels(scenes):
     seg = scene.view.render(d, segmentation=True)
     mask = table_mask(scene, seg)
     clean = scene.view.render(d)
-    plain = Table(TableCfg(rgb_std=0.0, texture=0.0))(View.of(cfg.render),
+    plain = Table(TableCfg(rgb_std=0.0, texture=0.0))(Shot.of(cfg.render),
                                                       np.random.default_rng(0))
     assert plain.texture is None
-    np.testing.assert_array_equal(render_view(scene.view, d, plain), clean)
-    view = Table(TableCfg(rgb_std=0.1, texture=0.08))(View.of(cfg.render),
+    np.testing.assert_array_equal(render_shot(scene.view, d, plain), clean)
+    view = Table(TableCfg(rgb_std=0.1, texture=0.08))(Shot.of(cfg.render),
                                                       np.random.default_rng(1))
-    rgb = render_view(scene.view, d, view)
+    rgb = render_shot(scene.view, d, view)
     np.testing.assert_array_equal(rgb[~mask], clean[~mask])  # object and fingers untouched
     assert clean[mask].std(axis=0).max() < 1.0
     rel = rgb[mask].astype(float).std(axis=0) / rgb[mask].mean(axis=0)
     np.testing.assert_allclose(rel, 0.08, rtol=0.35)
     expect = np.array(view.table_rgb) / np.array(cfg.render.table_rgb)
     np.testing.assert_allclose(rgb[mask].mean(0) / clean[mask].mean(0), expect, rtol=0.03)
-    again = render_view(scene.view, d, view)
+    again = render_shot(scene.view, d, view)
     np.testing.assert_array_equal(rgb, again)  # replayable from the stored parameters
 
 
@@ -216,9 +216,9 @@ def test_shadows_off_by_default_and_only_when_asked():
     try:
         assert scene.model.vis.quality.shadowsize == 0
         assert scene.view.renderer._mjr_context.shadowSize == 0
-        view = Shadows(ShadowsCfg())(View.of(cfg.render), np.random.default_rng(0))
+        view = Shadows(ShadowsCfg())(Shot.of(cfg.render), np.random.default_rng(0))
         with pytest.raises(ValueError, match="shadow map"):
-            render_view(scene.view, scene.press.data, view)
+            render_shot(scene.view, scene.press.data, view)
     finally:
         scene.close()
 
@@ -231,11 +231,11 @@ def test_shadows_darken_the_table_beside_the_object():
         assert scene.view.renderer._mjr_context.shadowSize == 2048
         d = scene.press.data
         mask = table_mask(scene, scene.view.render(d, segmentation=True))
-        view = Shadows(ShadowsCfg(elevation_deg=40.0))(View.of(cfg.render),
+        view = Shadows(ShadowsCfg(elevation_deg=40.0))(Shot.of(cfg.render),
                                                        np.random.default_rng(0))
         lit_only = dataclasses.replace(view, shadows=False)
-        shaded = render_view(scene.view, d, view)[mask].mean(axis=1)
-        plain = render_view(scene.view, d, lit_only)[mask].mean(axis=1)
+        shaded = render_shot(scene.view, d, view)[mask].mean(axis=1)
+        plain = render_shot(scene.view, d, lit_only)[mask].mean(axis=1)
         # the fixed key light keeps the lit table as bright as the headlight did
         assert np.median(plain) == pytest.approx(np.mean(cfg.render.table_rgb) * 255, abs=3)
         dark = shaded < 0.8 * plain
@@ -257,8 +257,8 @@ def test_disabled_image_effects_are_never_built_nor_called(monkeypatch, tmp_path
         monkeypatch.setattr(cls, "__init__", forbidden)
         monkeypatch.setattr(cls, "__call__", forbidden)
     monkeypatch.setattr(configuration, "render_with_effects", forbidden)
-    monkeypatch.setattr(view_render, "render_view", forbidden)
-    monkeypatch.setattr(view_render, "View", forbidden)
+    monkeypatch.setattr(shot_render, "render_shot", forbidden)
+    monkeypatch.setattr(shot_render, "Shot", forbidden)
     man = generate(GenerateCfg(n=3, seed=2), tmp_path / "d", workers=1, progress=False)
     assert man["effects"] == []
     cfg = pd.read_parquet(tmp_path / "d" / "configs.parquet")

@@ -29,14 +29,14 @@ from vistac_sim.effects.sensor_noise import SensorNoise, SensorNoiseCfg
 from vistac_sim.effects.shadows import Shadows, ShadowsCfg
 from vistac_sim.effects.table import Table, TableCfg
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import ObjectScene
+from vistac_sim.generate.rigs import ObjectRig
 from vistac_sim.mj import mujoco
 from vistac_sim.render import textures
 from vistac_sim.render.drawn import drawn_boxes, drawn_shapes
 from vistac_sim.render.finish import apply_finish, motion_kernel
 from vistac_sim.render.outlines import moved_capsules
-from vistac_sim.render.view import CameraPose, Finish, View
-from vistac_sim.render.view_render import GEOM, render_mask, render_view, view_boxes
+from vistac_sim.render.shot import CameraPose, Finish, Shot
+from vistac_sim.render.shot_render import GEOM, render_mask, render_shot, shot_boxes
 
 FINGERS = ("index", "thumb")
 
@@ -51,11 +51,11 @@ def photo():
         s.close()
 
 
-def seg_of(scene: ObjectScene, view: View) -> np.ndarray:
-    return render_view(scene.view, scene.press.data, view, segmentation=True)
+def seg_of(scene: ObjectRig, view: Shot) -> np.ndarray:
+    return render_shot(scene.view, scene.press.data, view, segmentation=True)
 
 
-def geom_mask(scene: ObjectScene, seg: np.ndarray, name: str) -> np.ndarray:
+def geom_mask(scene: ObjectRig, seg: np.ndarray, name: str) -> np.ndarray:
     gid = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_GEOM, name)
     return (seg[..., 1] == GEOM) & (seg[..., 0] == gid)
 
@@ -117,16 +117,16 @@ def test_object_material_textures_the_object_only(photo):
     striped = ObjectMaterial(ObjectMaterialCfg(kinds=("stripes",), plain=0.0,
                                                saturation=(0, 0), value=(1, 1),
                                                specular=(0, 0)))
-    v0 = plain(View.of(cfg.render), np.random.default_rng(0))
-    v1 = striped(View.of(cfg.render), np.random.default_rng(0))
+    v0 = plain(Shot.of(cfg.render), np.random.default_rng(0))
+    v1 = striped(Shot.of(cfg.render), np.random.default_rng(0))
     assert v0.object_look.kind == "" and v1.object_look.kind == "stripes"
     obj = geom_mask(scene, seg_of(scene, v0), "object_visual")
-    a, b = render_view(scene.view, d, v0), render_view(scene.view, d, v1)
+    a, b = render_shot(scene.view, d, v0), render_shot(scene.view, d, v1)
     np.testing.assert_array_equal(a[~obj], b[~obj])  # table and fingers untouched
     assert b[obj].astype(float).std(0).mean() > a[obj].astype(float).std(0).mean() + 10
     tinted = dataclasses.replace(v1, object_look=dataclasses.replace(v1.object_look,
                                                                      rgb=(1.0, 0.2, 0.2)))
-    c = render_view(scene.view, d, tinted)[obj].mean(0)
+    c = render_shot(scene.view, d, tinted)[obj].mean(0)
     assert c[0] > 2 * c[1] and c[0] > 2 * c[2]  # the tint multiplies the texture
 
 
@@ -135,12 +135,12 @@ def test_table_texture_kinds_and_tint(photo):
     scene = scenes[1]
     d = scene.press.data
     view = Table(TableCfg(kinds=("wood",), rgb_std=0.0, texture=0.0))(
-        View.of(cfg.render), np.random.default_rng(3))
+        Shot.of(cfg.render), np.random.default_rng(3))
     assert view.texture is None and view.table_look.kind == "wood"
     assert view.table_rgb == (1.0, 1.0, 1.0)
     table = geom_mask(scene, seg_of(scene, view), "table")
-    rgb = render_view(scene.view, d, view)
-    clean = render_view(scene.view, d, View.of(cfg.render))
+    rgb = render_shot(scene.view, d, view)
+    clean = render_shot(scene.view, d, Shot.of(cfg.render))
     assert clean[table].std(0).max() < 1.0
     assert rgb[table].astype(float).std(0).mean() > 8  # wood grain
     assert rgb[table][:, 0].mean() > rgb[table][:, 2].mean() + 20  # brown, not grey
@@ -160,16 +160,16 @@ def test_warm_light_colours_the_table(photo):
     cfg, scenes = photo
     scene = scenes[0]
     eff = Lighting(LightingCfg(elevation_deg=(90, 90), temperature_k=(3000, 3000)))
-    view = eff(View.of(cfg.render), np.random.default_rng(0))
+    view = eff(Shot.of(cfg.render), np.random.default_rng(0))
     assert view.light.rgb == kelvin_rgb(3000)
     table = geom_mask(scene, seg_of(scene, view), "table")
-    rgb = render_view(scene.view, scene.press.data, view)[table].mean(0)
+    rgb = render_shot(scene.view, scene.press.data, view)[table].mean(0)
     assert rgb[0] > rgb[2] + 15  # the grey table lit warm
 
 
 def test_shadow_probability_and_softness():
     eff = Shadows(ShadowsCfg(probability=0.3, softness=0.02))
-    views = [eff(View.of(GenerateCfg().render), np.random.default_rng(i)) for i in range(400)]
+    views = [eff(Shot.of(GenerateCfg().render), np.random.default_rng(i)) for i in range(400)]
     assert np.mean([v.shadows for v in views]) == pytest.approx(0.3, abs=0.07)
     assert {v.light.softness for v in views} == {0.02}
 
@@ -178,7 +178,7 @@ def test_shadow_probability_and_softness():
 def test_phone_camera_fills_the_frame_with_the_working_area():
     cfg = GenerateCfg()
     cam = CameraPose(fovy=float(np.radians(60)))
-    view = dataclasses.replace(View.of(cfg.render), camera=cam)
+    view = dataclasses.replace(Shot.of(cfg.render), camera=cam)
     half = cfg.render.view_extent / 2
     np.testing.assert_allclose(view.project(np.array([[-half, half, 0], [half, -half, 0]])),
                                [[0, 0], [227, 227]], atol=1e-9)
@@ -188,7 +188,7 @@ def test_phone_camera_fills_the_frame_with_the_working_area():
     assert up[0] > 227 * 0.75 + 1
     eff = PhoneCamera(PhoneCameraCfg())
     for i in range(50):
-        v = eff(View.of(cfg.render), np.random.default_rng(i))
+        v = eff(Shot.of(cfg.render), np.random.default_rng(i))
         assert np.degrees(v.camera.tilt) <= 5.0 + 1e-9 and abs(np.degrees(v.camera.roll)) <= 5
         assert 50 <= np.degrees(v.camera.fovy) <= 70
 
@@ -199,7 +199,7 @@ def test_boxes_under_the_phone_camera_match_the_rendered_fingers(photo):
     moved = OverlayError(OverlayErrorCfg(offset_std=0.003, rotation_std_deg=8.0))
     for i, scene in enumerate(scenes):
         for k in range(3):
-            view = eff(View.of(cfg.render), np.random.default_rng(10 * i + k))
+            view = eff(Shot.of(cfg.render), np.random.default_rng(10 * i + k))
             if k == 2:  # rendered fingers moved off the true ones: drawn over the scene
                 view = moved(view, np.random.default_rng(k))
             obj = mujoco.mj_name2id(scene.model, mujoco.mjtObj.mjOBJ_GEOM, "object_visual")
@@ -209,7 +209,7 @@ def test_boxes_under_the_phone_camera_match_the_rendered_fingers(photo):
                 seg = seg_of(scene, view)
             finally:
                 scene.model.geom_group[obj] = group
-            boxes = view_boxes(scene.model, scene.press.data, scene.ids, view)
+            boxes = shot_boxes(scene.model, scene.press.data, scene.ids, view)
             for j, f in enumerate(FINGERS):
                 pix = (seg[..., 1] == GEOM) & np.isin(seg[..., 0],
                                                       [scene.ids.pad[f], scene.ids.shaft[f]])
@@ -218,12 +218,12 @@ def test_boxes_under_the_phone_camera_match_the_rendered_fingers(photo):
 
 # ------------------------------------------------------------------------- the finish
 def test_exposure_and_white_balance_gain():
-    view = Exposure(ExposureCfg(ev=(1.0, 1.0), balance=0.0))(View.of(GenerateCfg().render),
+    view = Exposure(ExposureCfg(ev=(1.0, 1.0), balance=0.0))(Shot.of(GenerateCfg().render),
                                                              np.random.default_rng(0))
     assert view.finish.gain == (2.0, 2.0, 2.0)
     img = np.full((32, 32, 3), 60, np.uint8)
     np.testing.assert_array_equal(apply_finish(img, view.finish), 120)
-    wb = Exposure(ExposureCfg(ev=(0, 0), balance=0.2))(View.of(GenerateCfg().render),
+    wb = Exposure(ExposureCfg(ev=(0, 0), balance=0.2))(Shot.of(GenerateCfg().render),
                                                       np.random.default_rng(1))
     assert wb.finish.gain[1] == 1.0 and wb.finish.gain[0] != 1.0
 
@@ -237,13 +237,13 @@ def test_blur_softens_edges():
     k = motion_kernel(4.0, 0.0)
     assert k.sum() == pytest.approx(1.0) and (k > 0).sum() >= 4
     v = Blur(BlurCfg(defocus_px=(0.0, 0.2), motion_px=(0.0, 0.5)))(
-        View.of(GenerateCfg().render), np.random.default_rng(0))
+        Shot.of(GenerateCfg().render), np.random.default_rng(0))
     assert v.finish.defocus == 0.0 and v.finish.motion[0] == 0.0  # below the thresholds
 
 
 def test_sensor_noise_std_follows_brightness_and_replays():
     view = SensorNoise(SensorNoiseCfg(read=(2.0, 2.0), shot=(0.1, 0.1)))(
-        View.of(GenerateCfg().render), np.random.default_rng(0))
+        Shot.of(GenerateCfg().render), np.random.default_rng(0))
     for level in (40, 200):
         img = np.full((227, 227, 3), level, np.uint8)
         out = apply_finish(img, view.finish).astype(float)
@@ -254,7 +254,7 @@ def test_sensor_noise_std_follows_brightness_and_replays():
 
 def test_jpeg_quality_range_and_artefacts():
     eff = Jpeg(JpegCfg(quality=(60, 62)))
-    qs = {eff(View.of(GenerateCfg().render), np.random.default_rng(i)).finish.jpeg
+    qs = {eff(Shot.of(GenerateCfg().render), np.random.default_rng(i)).finish.jpeg
           for i in range(40)}
     assert qs == {60, 61, 62}
     rng = np.random.default_rng(0)
@@ -282,7 +282,7 @@ def test_drawn_fingers_replace_the_rendered_ones_and_boxes_hold_them(photo):
     d = scene.press.data
     for i, cfg_d in enumerate([DrawnOverlayCfg(outline=1.0, antialias=0.0, tapered=0.0),
                                DrawnOverlayCfg(outline=0.0, antialias=1.0, tapered=1.0)]):
-        view = PhoneCamera(PhoneCameraCfg())(View.of(cfg.render), np.random.default_rng(i))
+        view = PhoneCamera(PhoneCameraCfg())(Shot.of(cfg.render), np.random.default_rng(i))
         view = DrawnOverlay(cfg_d)(view, np.random.default_rng(i))
         seg = seg_of(scene, view)
         for f in FINGERS:  # the rendered fingers are hidden
@@ -291,7 +291,7 @@ def test_drawn_fingers_replace_the_rendered_ones_and_boxes_hold_them(photo):
         shapes = drawn_shapes(moved_capsules(scene.model, d, scene.ids, view), view)
         boxes = drawn_boxes(shapes, view.image_size)
         mask = render_mask(scene.view, d, view)
-        rgb = render_view(scene.view, d, view)
+        rgb = render_shot(scene.view, d, view)
         for j in range(len(FINGERS)):
             np.testing.assert_allclose(boxes[j], pixel_box(mask == 2 + j), atol=1.5)
             colour = np.array(view.drawn.rgb[j]) * 255
@@ -305,7 +305,7 @@ def test_drawn_width_and_taper_change_the_shape(photo):
     scene = scenes[1]
     d = scene.press.data
     base = DrawnOverlay(DrawnOverlayCfg(width=(1.0, 1.0), outline=0.0, tapered=0.0))(
-        View.of(cfg.render), np.random.default_rng(0))
+        Shot.of(cfg.render), np.random.default_rng(0))
 
     def area(view) -> int:
         mask = render_mask(scene.view, d, view)

@@ -6,7 +6,7 @@ import pytest
 from hard_cases import KNOWN_REASONS
 
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import ObjectScene, solve
+from vistac_sim.generate.rigs import ObjectRig, solve
 from vistac_sim.geometry import angle_deg
 from vistac_sim.objects.library import build_object, procedural_library
 from vistac_sim.physics.analytic import FACES, analytic_press, face_grasp, face_object
@@ -35,7 +35,7 @@ def test_friction_changes_the_label():
 def test_two_phase_press_is_deterministic_and_clean():
     """Same grasp, same labels to the bit, whatever was pressed before; no MuJoCo warning."""
     cfg = GenerateCfg()
-    scene = ObjectScene(face_object("wall", 30.0, cfg.hand.height), cfg, render=False)
+    scene = ObjectRig(face_object("wall", 30.0, cfg.hand.height), cfg, render=False)
     a = scene.press.run(face_grasp("wall", 30.0, cfg.hand.tip_radius)).force_sensor
     scene.press.run(face_grasp("wall", 10.0, cfg.hand.tip_radius))
     b = scene.press.run(face_grasp("wall", 30.0, cfg.hand.tip_radius)).force_sensor
@@ -49,7 +49,7 @@ def _drawn(cfg: GenerateCfg, per_family: int = 3, seed: int = 0):
     """Accepted presses drawn as `vistac generate` draws them, a few per procedural family."""
     out = []
     for spec in procedural_library(cfg.objects, seed)[:len(cfg.objects.families)]:
-        scene = ObjectScene(build_object(spec, cfg.hand.height), cfg, render=False)
+        scene = ObjectRig(build_object(spec, cfg.hand.height), cfg, render=False)
         rng, done = np.random.default_rng(seed), 0
         for _ in range(40):
             try:

@@ -114,9 +114,9 @@ def test_triangle_index_fast_path_declines_when_a_neighbour_is_truly_closer():
 def test_surface_normals_of_a_degenerate_face_follow_the_pad():
     """A face with no area has no normal of its own: the normal points from the mesh point to
     the pad, as on an edge (never a zero vector)."""
+    from vistac_sim.hand.grasp import Grasp
     from vistac_sim.physics.normals import surface_normals
     from vistac_sim.physics.press import PressResult
-    from vistac_sim.scene.grasp import Grasp
 
     line = np.array([[0.0, -0.01, 0.0], [0.0, 0.0, 0.0], [0.0, 0.01, 0.0]])  # collinear
     index = TriangleIndex(line, np.array([[0, 1, 2]]))

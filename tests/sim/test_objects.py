@@ -263,8 +263,8 @@ def test_configuration_moves_on_when_its_object_fails_during_the_run(tmp_path, m
 
     from vistac_sim.generate import configuration
     from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.generate.rigs import NoValidGrasp
     from vistac_sim.generate.run import generate
-    from vistac_sim.generate.scenes import NoValidGrasp
     from vistac_sim.objects.config import ObjectsCfg
 
     real = configuration.draw_grasp

@@ -7,7 +7,7 @@ from hard_cases import KNOWN_REASONS
 
 from vistac.dataset.schema import redraw_counts
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import ObjectScene, solve
+from vistac_sim.generate.rigs import ObjectRig, solve
 from vistac_sim.geometry import angle_deg
 from vistac_sim.objects.library import build_object, procedural_library
 from vistac_sim.objects.outlines import CONCAVE_FAMILIES
@@ -33,7 +33,7 @@ def sensor_rotation(finger: str, approach_xy: np.ndarray) -> np.ndarray:
 
 def _presses(cfg, family, n, seed=0):
     spec = next(s for s in procedural_library(cfg.objects, seed) if s.family == family)
-    scene = ObjectScene(build_object(spec, cfg.hand.height), cfg, render=False)
+    scene = ObjectRig(build_object(spec, cfg.hand.height), cfg, render=False)
     rng = np.random.default_rng(seed)
     done = []
     while len(done) < n:
@@ -93,7 +93,7 @@ def test_unstable_press_is_rejected_not_reset():
     cfg = GenerateCfg()
     cfg.hand.press_force = 1e12  # far beyond anything the solver can settle
     spec = procedural_library(cfg.objects, 0)[1]
-    scene = ObjectScene(build_object(spec, cfg.hand.height), cfg, render=False)
+    scene = ObjectRig(build_object(spec, cfg.hand.height), cfg, render=False)
     rng = np.random.default_rng(0)
     reasons = set()
     for _ in range(5):
@@ -109,7 +109,7 @@ def test_unstable_press_is_rejected_not_reset():
 def test_noise_only_repeats_share_one_physics_solve(monkeypatch):
     from vistac_sim.effects.registry import build_pipeline
     from vistac_sim.generate.configuration import make_configuration
-    from vistac_sim.generate.scenes import SceneCache
+    from vistac_sim.generate.rigs import RigCache
     from vistac_sim.physics.press import Press
 
     cfg = GenerateCfg()
@@ -117,7 +117,7 @@ def test_noise_only_repeats_share_one_physics_solve(monkeypatch):
     calls = []
     run = Press.run
     monkeypatch.setattr(Press, "run", lambda self, grasp: calls.append(1) or run(self, grasp))
-    scenes = SceneCache(procedural_library(cfg.objects, 0)[:4], cfg)
+    scenes = RigCache(procedural_library(cfg.objects, 0)[:4], cfg)
     sampler_reasons = {"unreachable", "no_opposing_thumb", "fingers_overlap"}
     for cid in range(6):
         calls.clear()

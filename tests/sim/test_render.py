@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import ObjectScene, draw_grasp
+from vistac_sim.generate.rigs import ObjectRig, draw_grasp
 from vistac_sim.objects.library import build_object, procedural_library
 from vistac_sim.render.topview import finger_boxes, world_to_pixel
 
@@ -14,7 +14,7 @@ def pressed_scenes():
     cfg = GenerateCfg()
     out = []
     for spec in procedural_library(cfg.objects, 3)[:4]:
-        scene = ObjectScene(build_object(spec, cfg.hand.height), cfg)
+        scene = ObjectRig(build_object(spec, cfg.hand.height), cfg)
         grasp = draw_grasp(scene, np.random.default_rng(1), cfg)[0]
         out.append((scene, grasp, scene.view.render(scene.press.data),
                     scene.view.render(scene.press.data, segmentation=True)))

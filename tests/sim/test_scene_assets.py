@@ -8,7 +8,7 @@ import pytest
 
 from vistac_sim.assets import EXAMPLE_MESHES, HAND_XML, SCENE_XML
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import ObjectScene
+from vistac_sim.generate.rigs import ObjectRig
 from vistac_sim.mj import mujoco
 from vistac_sim.objects.library import build_object, mesh_library, procedural_library
 from vistac_sim.objects.outlines import PROCEDURAL_FAMILIES
@@ -32,7 +32,7 @@ def _variants() -> list[tuple[str, float]]:
     return [(family, friction) for family in PROCEDURAL_FAMILIES for friction in (0.0, 0.6)]
 
 
-def _press_clean(scene: ObjectScene, cfg: GenerateCfg, presses: int = 2) -> None:
+def _press_clean(scene: ObjectRig, cfg: GenerateCfg, presses: int = 2) -> None:
     """Pose drawn grasps, drive both fingers and settle: never a warning."""
     rng, done = np.random.default_rng(0), 0
     for _ in range(50):
@@ -55,7 +55,7 @@ def test_every_procedural_scene_presses_without_warnings(family, friction):
     cfg = GenerateCfg()
     cfg.physics.friction = friction
     spec = next(s for s in procedural_library(cfg.objects, 0) if s.family == family)
-    scene = ObjectScene(build_object(spec, cfg.hand.height), cfg, render=False)
+    scene = ObjectRig(build_object(spec, cfg.hand.height), cfg, render=False)
     assert scene.model.geom_condim[scene.ids.pad["index"]] == (1 if friction == 0 else 3)
     _press_clean(scene, cfg)
 
@@ -69,14 +69,14 @@ def test_user_mesh_scenes_press_without_warnings(tmp_path):
         cfg.physics.friction = friction
         for spec in specs:
             obj = build_object(spec, cfg.hand.height, cache_dir=tmp_path)
-            _press_clean(ObjectScene(obj, cfg, render=False), cfg)
+            _press_clean(ObjectRig(obj, cfg, render=False), cfg)
 
 
 def test_config_edits_reach_the_model():
     cfg = GenerateCfg()
     cfg.hand.tip_radius, cfg.physics.timestep, cfg.render.image_size = 0.011, 0.001, 64
     spec = procedural_library(cfg.objects, 0)[0]
-    scene = ObjectScene(build_object(spec, cfg.hand.height), cfg, render=False)
+    scene = ObjectRig(build_object(spec, cfg.hand.height), cfg, render=False)
     m = scene.model
     assert m.geom_size[scene.ids.pad["thumb"], 0] == 0.011
     assert m.opt.timestep == 0.001 and m.vis.global_.offwidth == 64

@@ -9,7 +9,7 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
-from vistac_sim.render.view import Finish, View
+from vistac_sim.render.shot import Finish, Shot
 
 
 @dataclass
@@ -32,13 +32,13 @@ class Blur(ConfiguredEffect):
     stage: ClassVar[str] = "image"
     cfg: BlurCfg
 
-    def __call__(self, view: View, rng: np.random.Generator) -> View:
+    def __call__(self, shot: Shot, rng: np.random.Generator) -> Shot:
         c = self.cfg
         defocus = float(rng.uniform(*c.defocus_px))
         length, angle = float(rng.uniform(*c.motion_px)), float(rng.uniform(0.0, np.pi))
-        finish = replace(view.finish or Finish(), defocus=defocus if defocus >= 0.3 else 0.0,
+        finish = replace(shot.finish or Finish(), defocus=defocus if defocus >= 0.3 else 0.0,
                          motion=(length if length >= 1.0 else 0.0, angle))
-        return replace(view, finish=finish)
+        return replace(shot, finish=finish)
 
 
 register_effect("blur", lambda cfg: [Blur(cfg)], cfg=BlurCfg)

@@ -9,7 +9,7 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
-from vistac_sim.render.view import View
+from vistac_sim.render.shot import Shot
 
 
 @dataclass
@@ -33,18 +33,18 @@ class CameraJitter(ConfiguredEffect):
     stage: ClassVar[str] = "image"
     cfg: CameraJitterCfg
 
-    def __call__(self, view: View, rng: np.random.Generator) -> View:
+    def __call__(self, shot: Shot, rng: np.random.Generator) -> Shot:
         c = self.cfg
         shift = rng.normal(0.0, c.shift_std, 2)
         scale = float(np.exp(rng.normal(0.0, c.scale_std)))
         tilt_xy = np.radians(rng.normal(0.0, c.tilt_std_deg, 2))  # per horizontal axis
         roll = float(np.radians(rng.normal(0.0, c.roll_std_deg)))
-        cx, cy = view.camera.center
-        camera = replace(view.camera, center=(cx + float(shift[0]), cy + float(shift[1])),
-                         scale=view.camera.scale * scale, tilt=float(np.hypot(*tilt_xy)),
+        cx, cy = shot.camera.center
+        camera = replace(shot.camera, center=(cx + float(shift[0]), cy + float(shift[1])),
+                         scale=shot.camera.scale * scale, tilt=float(np.hypot(*tilt_xy)),
                          tilt_azimuth=float(np.arctan2(tilt_xy[1], tilt_xy[0])),
-                         roll=view.camera.roll + roll)
-        return replace(view, camera=camera)
+                         roll=shot.camera.roll + roll)
+        return replace(shot, camera=camera)
 
 
 register_effect("camera_jitter", lambda cfg: [CameraJitter(cfg)], cfg=CameraJitterCfg)

@@ -11,7 +11,7 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
-from vistac_sim.render.view import DrawnStyle, View
+from vistac_sim.render.shot import DrawnStyle, Shot
 
 
 @dataclass
@@ -52,7 +52,7 @@ class DrawnOverlay(ConfiguredEffect):
     stage: ClassVar[str] = "image"
     cfg: DrawnOverlayCfg
 
-    def __call__(self, view: View, rng: np.random.Generator) -> View:
+    def __call__(self, shot: Shot, rng: np.random.Generator) -> Shot:
         c = self.cfg
         colours = []
         for hues in (c.index_hue_deg, c.thumb_hue_deg):
@@ -67,7 +67,7 @@ class DrawnOverlay(ConfiguredEffect):
         taper = float(rng.uniform(*c.taper)) if rng.random() < c.tapered else 1.0
         style = DrawnStyle((colours[0], colours[1]), width, outline, (grey, grey, grey),
                            antialias, taper)
-        return replace(view, drawn=style)
+        return replace(shot, drawn=style)
 
 
 register_effect("drawn_overlay", lambda cfg: [DrawnOverlay(cfg)], cfg=DrawnOverlayCfg)

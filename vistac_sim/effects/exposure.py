@@ -9,7 +9,7 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
-from vistac_sim.render.view import Finish, View
+from vistac_sim.render.shot import Finish, Shot
 
 
 @dataclass
@@ -32,13 +32,13 @@ class Exposure(ConfiguredEffect):
     stage: ClassVar[str] = "image"
     cfg: ExposureCfg
 
-    def __call__(self, view: View, rng: np.random.Generator) -> View:
+    def __call__(self, shot: Shot, rng: np.random.Generator) -> Shot:
         c = self.cfg
         gain = 2.0 ** rng.uniform(*c.ev)
         rb = np.exp(rng.normal(0.0, c.balance, 2))
-        finish = replace(view.finish or Finish(), gain=(float(gain * rb[0]), float(gain),
+        finish = replace(shot.finish or Finish(), gain=(float(gain * rb[0]), float(gain),
                                                          float(gain * rb[1])))
-        return replace(view, finish=finish)
+        return replace(shot, finish=finish)
 
 
 register_effect("exposure", lambda cfg: [Exposure(cfg)], cfg=ExposureCfg)

@@ -9,7 +9,7 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
-from vistac_sim.render.view import Finish, View
+from vistac_sim.render.shot import Finish, Shot
 
 
 @dataclass
@@ -28,10 +28,10 @@ class Jpeg(ConfiguredEffect):
     stage: ClassVar[str] = "image"
     cfg: JpegCfg
 
-    def __call__(self, view: View, rng: np.random.Generator) -> View:
+    def __call__(self, shot: Shot, rng: np.random.Generator) -> Shot:
         lo, hi = self.cfg.quality
         quality = int(rng.integers(min(lo, hi), max(lo, hi) + 1))
-        return replace(view, finish=replace(view.finish or Finish(), jpeg=quality))
+        return replace(shot, finish=replace(shot.finish or Finish(), jpeg=quality))
 
 
 register_effect("jpeg", lambda cfg: [Jpeg(cfg)], cfg=JpegCfg)

@@ -9,7 +9,7 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
-from vistac_sim.render.view import Light, View
+from vistac_sim.render.shot import Light, Shot
 
 
 @dataclass
@@ -43,14 +43,14 @@ class Lighting(ConfiguredEffect):
     stage: ClassVar[str] = "image"
     cfg: LightingCfg
 
-    def __call__(self, view: View, rng: np.random.Generator) -> View:
+    def __call__(self, shot: Shot, rng: np.random.Generator) -> Shot:
         c = self.cfg
         el, az, diffuse, ambient = (rng.uniform(*r) for r in (
             c.elevation_deg, c.azimuth_deg, c.intensity, c.ambient))
         rgb = (1.0, 1.0, 1.0)
         if c.temperature_k is not None:
             rgb = kelvin_rgb(float(rng.uniform(*c.temperature_k)))
-        return replace(view, light=Light(float(np.radians(el)), float(np.radians(az)),
+        return replace(shot, light=Light(float(np.radians(el)), float(np.radians(az)),
                                          float(diffuse), float(ambient), c.specular, rgb))
 
 

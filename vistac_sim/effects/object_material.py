@@ -10,8 +10,8 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
+from vistac_sim.render.shot import Shot, Surface
 from vistac_sim.render.textures import OBJECT_KINDS
-from vistac_sim.render.view import Surface, View
 
 
 @dataclass
@@ -44,7 +44,7 @@ class ObjectMaterial(ConfiguredEffect):
     stage: ClassVar[str] = "image"
     cfg: ObjectMaterialCfg
 
-    def __call__(self, view: View, rng: np.random.Generator) -> View:
+    def __call__(self, shot: Shot, rng: np.random.Generator) -> Shot:
         c = self.cfg
         plain = rng.random() < c.plain
         kind = "" if plain else str(c.kinds[int(rng.integers(len(c.kinds)))])
@@ -56,7 +56,7 @@ class ObjectMaterial(ConfiguredEffect):
         repeat = float(np.exp(rng.uniform(*np.log(c.repeat))))
         look = Surface(kind, pick, tuple(float(v) for v in rgb), repeat,
                        float(rng.uniform(*c.specular)), float(rng.uniform(*c.shininess)))
-        return replace(view, object_look=look)
+        return replace(shot, object_look=look)
 
 
 register_effect("object_material", lambda cfg: [ObjectMaterial(cfg)], cfg=ObjectMaterialCfg)

@@ -9,7 +9,7 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
-from vistac_sim.render.view import View
+from vistac_sim.render.shot import Shot
 
 
 @dataclass
@@ -38,13 +38,13 @@ class OverlayError(ConfiguredEffect):
     stage: ClassVar[str] = "image"
     cfg: OverlayErrorCfg
 
-    def __call__(self, view: View, rng: np.random.Generator) -> View:
+    def __call__(self, shot: Shot, rng: np.random.Generator) -> Shot:
         c = self.cfg
         shift = np.asarray(c.offset, float) + rng.normal(0.0, 1.0, (2, 2)) * c.offset_std
         turn = np.radians(c.rotation_deg + rng.normal(0.0, 1.0, 2) * c.rotation_std_deg)
         overlay = tuple((float(d[0]), float(d[1]), float(a)) for d, a in zip(shift, turn,
                                                                               strict=True))
-        return replace(view, overlay=overlay)
+        return replace(shot, overlay=overlay)
 
 
 register_effect("overlay_error", lambda cfg: [OverlayError(cfg)], cfg=OverlayErrorCfg)

@@ -9,7 +9,7 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
-from vistac_sim.render.view import View
+from vistac_sim.render.shot import Shot
 
 
 @dataclass
@@ -36,18 +36,18 @@ class PhoneCamera(ConfiguredEffect):
     stage: ClassVar[str] = "image"
     cfg: PhoneCameraCfg
 
-    def __call__(self, view: View, rng: np.random.Generator) -> View:
+    def __call__(self, shot: Shot, rng: np.random.Generator) -> Shot:
         c = self.cfg
         fov = np.radians(rng.uniform(*c.fov_deg))
         tilt = np.radians(rng.uniform(0.0, c.tilt_deg))
         azimuth = rng.uniform(0.0, 2 * np.pi)
         roll = np.radians(rng.uniform(-c.roll_deg, c.roll_deg))
         fill = rng.uniform(*c.fill)
-        cam = view.camera
+        cam = shot.camera
         camera = replace(cam, scale=cam.scale / float(fill), tilt=cam.tilt + float(tilt),
                          tilt_azimuth=float(azimuth) if cam.tilt == 0 else cam.tilt_azimuth,
                          roll=cam.roll + float(roll), fovy=float(fov))
-        return replace(view, camera=camera)
+        return replace(shot, camera=camera)
 
 
 register_effect("phone_camera", lambda cfg: [PhoneCamera(cfg)], cfg=PhoneCameraCfg)

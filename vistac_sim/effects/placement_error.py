@@ -10,7 +10,7 @@ import numpy as np
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
 from vistac_sim.geometry import unit
-from vistac_sim.scene.grasp import Grasp
+from vistac_sim.hand.grasp import Grasp
 
 
 @dataclass
@@ -25,11 +25,11 @@ class PlacementErrorCfg(Config):
 class PlacementError(ConfiguredEffect):
     """The finger lands off its target: per repeat, each target moves by a Gaussian world-xy
     shift (std `position_std` m) and each approach direction turns by a Gaussian angle (std
-    `angle_std_deg`). A scene effect: every repeat gets its own physics solve.
+    `angle_std_deg`). A grasp effect: every repeat gets its own physics solve.
     """
 
     name: ClassVar[str] = "placement_error"
-    stage: ClassVar[str] = "scene"
+    stage: ClassVar[str] = "grasp"
     cfg: PlacementErrorCfg
 
     def __call__(self, grasp: Grasp, rng: np.random.Generator) -> Grasp:

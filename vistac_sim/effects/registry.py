@@ -1,17 +1,18 @@
-"""Effects: small callables that corrupt what a scene yields, run as a list of the enabled ones.
+"""Effects: small callables that corrupt what a configuration yields, run as a list of the
+enabled ones.
 
 Four stages, each a list in the `Pipeline`:
 
-- ``scene``: ``effect(grasp, rng) -> grasp``, per repeat, *before* the physics solve. A scene
-  effect changes the physics, so a configuration with any scene effect is solved once per repeat.
+- ``grasp``: ``effect(grasp, rng) -> grasp``, per repeat, *before* the physics solve. A grasp
+  effect changes the physics, so a configuration with any grasp effect is solved once per repeat.
 - ``force``: ``effect(forces, rng) -> forces`` on the measured forces of all repeats of one
   configuration at once, shape (K, 2, 3): repeat, finger (index, thumb), sensor-frame xyz, newtons.
-  Without scene effects, the K repeats share one solve and differ only through these effects.
+  Without grasp effects, the K repeats share one solve and differ only through these effects.
 - ``sensor``: ``effect(series, dt, rng) -> series`` on the 50 Hz force series of a configuration's
   simulated press/hold/release session, shape (T, 2, 3) (see `vistac_sim.recording.session`);
   each press's reading is the series at its peak sample. Only simulated when a sensor effect or
   `--recordings` asks for it.
-- ``image``: ``effect(view, rng) -> view`` on the render request of a configuration.
+- ``image``: ``effect(shot, rng) -> shot`` on the render request of a configuration.
 
 A disabled effect is not in the list, so it is never constructed nor called and costs nothing.
 Every effect reports its parameters for the manifest through ``params()``.
@@ -34,7 +35,7 @@ import numpy as np
 
 from vistac.config import Config, param
 
-STAGES = ("scene", "force", "sensor", "image")
+STAGES = ("grasp", "force", "sensor", "image")
 
 
 @dataclass(frozen=True)
@@ -116,9 +117,9 @@ def effects_config() -> type:
 
 @dataclass
 class Pipeline:
-    """The enabled effects of a scene, grouped by stage, in the order they run."""
+    """The enabled effects of a run, grouped by stage, in the order they run."""
 
-    scene: list[Effect] = field(default_factory=list)
+    grasp: list[Effect] = field(default_factory=list)
     force: list[Effect] = field(default_factory=list)
     sensor: list[Effect] = field(default_factory=list)
     image: list[Effect] = field(default_factory=list)
@@ -126,7 +127,7 @@ class Pipeline:
     @property
     def changes_physics(self) -> bool:
         """True when some effect needs one physics solve per repeat."""
-        return bool(self.scene)
+        return bool(self.grasp)
 
     @property
     def needs_series(self) -> bool:
@@ -134,14 +135,14 @@ class Pipeline:
         return bool(self.sensor)
 
     def all(self) -> list[Effect]:
-        return [*self.scene, *self.force, *self.sensor, *self.image]
+        return [*self.grasp, *self.force, *self.sensor, *self.image]
 
     def describe(self) -> list[dict[str, Any]]:
         """One entry per enabled effect: name, stage and parameters (for the manifest)."""
         return [{"name": e.name, "stage": e.stage, "params": e.params()} for e in self.all()]
 
-    def apply_scene(self, grasp, rng: np.random.Generator):
-        for effect in self.scene:
+    def apply_grasp(self, grasp, rng: np.random.Generator):
+        for effect in self.grasp:
             grasp = effect(grasp, rng)
         return grasp
 
@@ -155,10 +156,10 @@ class Pipeline:
             series = effect(series, dt, rng)
         return series
 
-    def apply_image(self, view, rng: np.random.Generator):
+    def apply_image(self, shot, rng: np.random.Generator):
         for effect in self.image:
-            view = effect(view, rng)
-        return view
+            shot = effect(shot, rng)
+        return shot
 
 
 def build_pipeline(cfg: Any) -> Pipeline:

@@ -10,7 +10,7 @@ import numpy as np
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
 from vistac_sim.render.finish import NOISE_MARGIN
-from vistac_sim.render.view import Finish, View
+from vistac_sim.render.shot import Finish, Shot
 
 
 @dataclass
@@ -33,11 +33,11 @@ class SensorNoise(ConfiguredEffect):
     stage: ClassVar[str] = "image"
     cfg: SensorNoiseCfg
 
-    def __call__(self, view: View, rng: np.random.Generator) -> View:
+    def __call__(self, shot: Shot, rng: np.random.Generator) -> Shot:
         c = self.cfg
         noise = (float(rng.uniform(*c.read)), float(rng.uniform(*c.shot)))
         at = tuple(int(v) for v in rng.integers(0, NOISE_MARGIN, 2))
-        return replace(view, finish=replace(view.finish or Finish(), noise=noise, noise_at=at))
+        return replace(shot, finish=replace(shot.finish or Finish(), noise=noise, noise_at=at))
 
 
 register_effect("sensor_noise", lambda cfg: [SensorNoise(cfg)], cfg=SensorNoiseCfg)

@@ -9,7 +9,7 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
-from vistac_sim.render.view import HEADLIGHT, Light, View
+from vistac_sim.render.shot import HEADLIGHT, Light, Shot
 
 
 @dataclass
@@ -44,8 +44,8 @@ class Shadows(ConfiguredEffect):
     stage: ClassVar[str] = "image"
     cfg: ShadowsCfg
 
-    def __call__(self, view: View, rng: np.random.Generator) -> View:
-        light = view.light
+    def __call__(self, shot: Shot, rng: np.random.Generator) -> Shot:
+        light = shot.light
         if light is None:
             el = np.radians(self.cfg.elevation_deg)
             light = Light(float(el), float(np.radians(self.cfg.azimuth_deg)),
@@ -53,7 +53,7 @@ class Shadows(ConfiguredEffect):
         if self.cfg.softness:
             light = replace(light, softness=self.cfg.softness)
         cast = self.cfg.probability >= 1.0 or rng.random() < self.cfg.probability
-        return replace(view, light=light, shadows=bool(cast))
+        return replace(shot, light=light, shadows=bool(cast))
 
 
 def shadow_map_size(effects: Any) -> int:

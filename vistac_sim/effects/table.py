@@ -10,8 +10,8 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
+from vistac_sim.render.shot import Shot, Surface, TableTexture
 from vistac_sim.render.textures import TABLE_KINDS
-from vistac_sim.render.view import Surface, TableTexture, View
 
 
 @dataclass
@@ -40,9 +40,9 @@ class Table(ConfiguredEffect):
     stage: ClassVar[str] = "image"
     cfg: TableCfg
 
-    def __call__(self, view: View, rng: np.random.Generator) -> View:
+    def __call__(self, shot: Shot, rng: np.random.Generator) -> Shot:
         c = self.cfg
-        base = np.asarray(view.table_rgb) if not c.kinds else np.ones(3)
+        base = np.asarray(shot.table_rgb) if not c.kinds else np.ones(3)
         rgb = np.clip(base + rng.normal(0.0, c.rgb_std, 3), 0.0, 1.0)
         seed = int(rng.integers(2**31))
         texture = TableTexture(seed, c.texture, c.texture_scale, c.texture_octaves) \
@@ -53,7 +53,7 @@ class Table(ConfiguredEffect):
             kind = str(c.kinds[int(rng.integers(len(c.kinds)))])
             repeat = float(np.exp(rng.uniform(*np.log(c.repeat))))
             look = Surface(kind, float(rng.random()), rgb, repeat, specular=0.0, shininess=0.0)
-        return replace(view, table_rgb=rgb, texture=texture, table_look=look)
+        return replace(shot, table_rgb=rgb, texture=texture, table_look=look)
 
 
 register_effect("table", lambda cfg: [Table(cfg)], cfg=TableCfg)

@@ -2,7 +2,8 @@
 
 - `config`: `GenerateCfg`, the whole config tree (written into the manifest);
 - `grasps`: grasp sampling on an object's outline;
-- `scenes`: what a worker builds once per object, and pressing a grasp (`solve`, `draw_grasp`);
+- `rigs`: what a worker builds once per object (`ObjectRig`), and pressing a grasp (`solve`,
+  `draw_grasp`);
 - `configuration`: one grasp configuration end to end (presses, effects, labels, render, rows);
 - `shards`: the unfinished run's state, committed shards, resume and the final tables;
 - `objects_report`: which objects a run keeps, and the per-object summary at its end;

@@ -1,6 +1,6 @@
 """The generation config: a tree of small dataclasses, every knob declared once.
 
-Each sub-tree lives next to the code that uses it (`HandCfg` in `vistac_sim.scene`, `PhysicsCfg`
+Each sub-tree lives next to the code that uses it (`HandCfg` in `vistac_sim.hand`, `PhysicsCfg`
 in `vistac_sim.physics`, ...); this module assembles them. The whole tree is written into
 `manifest.json` (``to_dict``) so that a dataset states exactly how it was made, and `--resume`
 can refuse to continue a run made with other settings.
@@ -18,11 +18,11 @@ from vistac.config import Config, ConfigError, param, to_dict
 from vistac.dataset import SplitCfg
 from vistac_sim.effects import EffectsCfg
 from vistac_sim.effects.presets import resolve
+from vistac_sim.hand.config import HandCfg
 from vistac_sim.objects.config import ObjectsCfg
 from vistac_sim.physics.config import PhysicsCfg
 from vistac_sim.recording.config import RecordingCfg
 from vistac_sim.render.config import RenderCfg
-from vistac_sim.scene.config import HandCfg
 
 MIN_TIP_PIXELS = 3  # a fingertip drawn narrower cannot be told from noise by the tip locator
 

@@ -23,22 +23,22 @@ from vistac.dataset.schema import (
 )
 from vistac_sim.effects.registry import Pipeline
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import NoValidGrasp, ObjectScene, SceneCache, draw_grasp
-from vistac_sim.objects.library import SceneObject
+from vistac_sim.generate.rigs import NoValidGrasp, ObjectRig, RigCache, draw_grasp
+from vistac_sim.hand.grasp import Grasp
+from vistac_sim.objects.library import BuiltObject
 from vistac_sim.objects.specs import object_index
 from vistac_sim.physics.checks import RejectedSample
 from vistac_sim.physics.press import PressResult
 from vistac_sim.recording.layout import recording_csv
 from vistac_sim.recording.session import simulate_session
 from vistac_sim.render.png import encode_png
+from vistac_sim.render.shot_render import render_mask, render_with_effects
 from vistac_sim.render.topview import finger_boxes, px_per_m
-from vistac_sim.render.view_render import render_mask, render_with_effects
-from vistac_sim.scene.grasp import Grasp
 
-STREAMS = ("grasp", "scene_effects", "force_effects", "image_effects", "session",
+STREAMS = ("grasp", "grasp_effects", "force_effects", "image_effects", "session",
            "sensor_effects")
 FALLBACK_ROUNDS = 5  # passes over the library before a configuration gives up
-SCENE_EFFECT_TRIES = 10  # draws of the scene effects per repeat before the unperturbed grasp
+GRASP_EFFECT_TRIES = 10  # draws of the grasp effects per repeat before the unperturbed grasp
 
 
 @dataclass
@@ -70,7 +70,7 @@ class ConfigStreams:
         return self._made[name]
 
 
-def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: GenerateCfg,
+def make_configuration(config_id: int, seed: int, scenes: RigCache, cfg: GenerateCfg,
                        pipeline: Pipeline, first: int | None = None) -> Configuration:
     """Draw, press, check, label and render configuration `config_id`.
 
@@ -114,7 +114,7 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
     clean = res.force_sensor
     fallbacks = 0
     if pipeline.changes_physics:
-        solved = [_solve_repeat(scene, pipeline, grasp, rng["scene_effects"])
+        solved = [_solve_repeat(scene, pipeline, grasp, rng["grasp_effects"])
                   for _ in range(cfg.repeats)]
         fallbacks = sum(f is None for f in solved)
         forces = np.stack([clean if f is None else f for f in solved])
@@ -129,7 +129,7 @@ def make_configuration(config_id: int, seed: int, scenes: SceneCache, cfg: Gener
         recording = recording_csv(session) if cfg.recording.write else None
     labels = unit_labels(forces)
     row = _config_row(config_id, scene.obj, grasp, res, clean, normal, boxes, cfg)
-    row["scene_effect_fallbacks"] = fallbacks  # repeats that kept the unperturbed force
+    row["grasp_effect_fallbacks"] = fallbacks  # repeats that kept the unperturbed force
     row["redraws"] = int(sum(redraws.values()))
     row["redraw_reasons"] = redraw_cell(redraws)
     row["failed_objects"] = failed_objects_cell(failed)
@@ -148,17 +148,17 @@ def grainy_frames(cfg: GenerateCfg) -> bool:
     return cfg.effects.sensor_noise is not None or cfg.effects.jpeg is not None
 
 
-def _solve_repeat(scene: ObjectScene, pipeline: Pipeline, grasp: Grasp,
+def _solve_repeat(scene: ObjectRig, pipeline: Pipeline, grasp: Grasp,
                   rng: np.random.Generator) -> np.ndarray | None:
-    """(2, 3) sensor-frame force of one repeat under the scene effects.
+    """(2, 3) sensor-frame force of one repeat under the grasp effects.
 
-    A perturbed grasp that the press rejects is drawn again, up to `SCENE_EFFECT_TRIES` times;
+    A perturbed grasp that the press rejects is drawn again, up to `GRASP_EFFECT_TRIES` times;
     None if every try was rejected (the caller keeps the unperturbed force and counts it in the
-    `scene_effect_fallbacks` column).
+    `grasp_effect_fallbacks` column).
     """
-    for _ in range(SCENE_EFFECT_TRIES):
+    for _ in range(GRASP_EFFECT_TRIES):
         try:
-            return scene.press.run(pipeline.apply_scene(grasp, rng)).force_sensor
+            return scene.press.run(pipeline.apply_grasp(grasp, rng)).force_sensor
         except RejectedSample:
             continue
     return None
@@ -171,7 +171,7 @@ _FINGER_COLUMNS = {f: [f"target_{f}_x", f"target_{f}_y", f"approach_{f}_x", f"ap
 """A configuration's per-finger columns, in order (made once: a row is built per configuration)."""
 
 
-def _config_row(config_id, obj: SceneObject, grasp: Grasp, res: PressResult, clean, normal,
+def _config_row(config_id, obj: BuiltObject, grasp: Grasp, res: PressResult, clean, normal,
                 boxes, cfg: GenerateCfg) -> dict:
     row = {
         "config_id": config_id,

@@ -38,14 +38,14 @@ from shapely.geometry import Polygon
 from shapely.ops import unary_union
 
 from vistac.dataset import FINGERS
+from vistac_sim.hand.grasp import Grasp, cap_starts, to_world
 from vistac_sim.objects.decomposition import pieces_section
 from vistac_sim.objects.outlines import boundary_arrays
 from vistac_sim.physics.checks import RejectedSample
-from vistac_sim.scene.grasp import Grasp, cap_starts, to_world
 
 if TYPE_CHECKING:
     from vistac_sim.generate.config import GenerateCfg
-    from vistac_sim.objects.library import SceneObject
+    from vistac_sim.objects.library import BuiltObject
 
 # Heights across the tip (fractions of its radius above and below the axis) where the collision
 # pieces of a mesh are sliced for the "finger fits" check.
@@ -89,7 +89,7 @@ class OutlineSampler:
         friction cone is wider than the configured spreads."""
 
     @classmethod
-    def of(cls, obj: SceneObject, cfg: GenerateCfg) -> OutlineSampler:
+    def of(cls, obj: BuiltObject, cfg: GenerateCfg) -> OutlineSampler:
         """The sampler of an object, with the clearance levels its collision pieces need.
 
         `cfg.hand.height` is the press height of this object.

@@ -39,8 +39,8 @@ from vistac.errors import UserError
 from vistac_sim.effects import build_pipeline
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.configuration import Configuration
+from vistac_sim.generate.rigs import RigCache
 from vistac_sim.generate.run import VERSIONED, Chunk
-from vistac_sim.generate.scenes import SceneCache
 from vistac_sim.generate.worker import commit_chunk, make_chunk
 from vistac_sim.objects.decomposition import default_cache_dir
 from vistac_sim.objects.specs import ObjectSpec
@@ -109,13 +109,13 @@ def _version_error(node: str, theirs: dict[str, str], mine: dict[str, str]) -> U
 _STATE: dict = {}  # per worker process: the scenes (and renderers) of the current run
 
 
-def _worker_state(job: ChunkJob) -> tuple[SceneCache, object]:
+def _worker_state(job: ChunkJob) -> tuple[RigCache, object]:
     """The scene cache and effect pipeline of `job`'s run, built once per worker process."""
     if _STATE.get("key") != job.key:
         if "scenes" in _STATE:
             _STATE["scenes"].close()
         _STATE.update(key=job.key, pipeline=build_pipeline(job.cfg.effects),
-                      scenes=SceneCache(list(job.specs), job.cfg, size=64,
+                      scenes=RigCache(list(job.specs), job.cfg, size=64,
                                         cache_dir=default_cache_dir()))
     return _STATE["scenes"], _STATE["pipeline"]
 

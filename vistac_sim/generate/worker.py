@@ -22,8 +22,8 @@ from vistac_sim.effects.registry import Pipeline
 from vistac_sim.generate import shards
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.configuration import Configuration, make_configuration
+from vistac_sim.generate.rigs import NoValidGrasp, ObjectRig, RigCache, draw_grasp
 from vistac_sim.generate.run import Chunk
-from vistac_sim.generate.scenes import NoValidGrasp, ObjectScene, SceneCache, draw_grasp
 from vistac_sim.objects.decomposition import default_cache_dir
 from vistac_sim.objects.library import build_object
 from vistac_sim.objects.specs import ObjectSpec
@@ -43,7 +43,7 @@ def screen_object(job: tuple[int, ObjectSpec, GenerateCfg]
     try:
         obj = build_object(spec, cfg.hand.height, cfg.objects.min_wall, default_cache_dir(),
                            cfg.objects.min_height)
-        scene = ObjectScene(obj, cfg, render=False)
+        scene = ObjectRig(obj, cfg, render=False)
     except UserError as exc:
         return str(exc), {}, []
     except Exception as exc:  # one object must never abort a run
@@ -60,7 +60,7 @@ def screen_object(job: tuple[int, ObjectSpec, GenerateCfg]
 
 
 # ------------------------------------------------------------------------- make, then commit
-def make_chunk(chunk: Chunk, cfg: GenerateCfg, scenes: SceneCache,
+def make_chunk(chunk: Chunk, cfg: GenerateCfg, scenes: RigCache,
                pipeline: Pipeline) -> list[Configuration]:
     """Every configuration of a chunk, in memory: pure and deterministic given `cfg.seed`."""
     return [make_configuration(cid, cfg.seed, scenes, cfg, pipeline, chunk.object_index)
@@ -103,7 +103,7 @@ def init_worker(cfg: GenerateCfg, specs: list[ObjectSpec], out: str) -> None:
     # Tasks hold one object each, so a few cached scenes suffice and memory does not grow with
     # the size of the object library.
     _WORKER.update(cfg=cfg, out=Path(out), pipeline=build_pipeline(cfg.effects),
-                   scenes=SceneCache(specs, cfg, size=4, cache_dir=default_cache_dir()))
+                   scenes=RigCache(specs, cfg, size=4, cache_dir=default_cache_dir()))
 
 
 def close_worker() -> None:

@@ -1,7 +1,7 @@
 """Objects on the table: procedural extrusions and user meshes, with convex collision pieces.
 
 An object is described by a light, picklable `ObjectSpec` (what to build) and built into a
-`SceneObject` (meshes in the object frame: xy centred on the footprint, table at z = 0) inside the
+`BuiltObject` (meshes in the object frame: xy centred on the footprint, table at z = 0) inside the
 worker that needs it. The full-resolution mesh stays the visual and the reference for surface
 normals; MuJoCo collides the convex `pieces` (it would otherwise collide a mesh as its hull).
 
@@ -29,12 +29,12 @@ from vistac_sim.objects.decomposition import convex_decomposition, pieces_sectio
 from vistac_sim.objects.meshes import find_mesh_files, load_mesh, scale_to_footprint
 from vistac_sim.objects.specs import ObjectSpec, procedural_library
 
-__all__ = ["ObjectSpec", "SceneObject", "build_object", "extruded_object", "mesh_library",
+__all__ = ["ObjectSpec", "BuiltObject", "build_object", "extruded_object", "mesh_library",
            "press_height", "procedural_library"]
 
 
 @dataclass
-class SceneObject:
+class BuiltObject:
     """A built object, ready for the scene, grasp sampling and normal look-ups."""
 
     spec: ObjectSpec
@@ -64,7 +64,7 @@ def press_height(object_height: float, finger_height: float, min_height: float =
 
 
 def build_object(spec: ObjectSpec, finger_height: float, min_wall: float = 0.001,
-                 cache_dir: Path | None = None, min_height: float = 0.0005) -> SceneObject:
+                 cache_dir: Path | None = None, min_height: float = 0.0005) -> BuiltObject:
     """Build the meshes, collision pieces and press-height section of one object.
 
     A mesh's section is the section of its collision pieces (what the fingers will touch).
@@ -85,17 +85,17 @@ def build_object(spec: ObjectSpec, finger_height: float, min_wall: float = 0.001
                         f"({z * 1000:.1f} mm)")
     if section.geom_type != "Polygon":
         section = max(section.geoms, key=lambda g: g.area)
-    return SceneObject(spec=spec, mesh=mesh, pieces=pieces, section=section, rgb=rgb,
+    return BuiltObject(spec=spec, mesh=mesh, pieces=pieces, section=section, rgb=rgb,
                        press_height=z, vertical_walls=False)
 
 
 def extruded_object(spec: ObjectSpec, poly: Polygon,
-                    rgb: tuple[float, float, float] = (0.25, 0.3, 0.7)) -> SceneObject:
+                    rgb: tuple[float, float, float] = (0.25, 0.3, 0.7)) -> BuiltObject:
     """An outline extruded to `spec.height`, collided as its exact convex pieces."""
     mesh = trimesh.creation.extrude_polygon(poly, spec.height)
     pieces = [trimesh.creation.extrude_polygon(p, spec.height)
               for p in outlines.convex_pieces(poly)]
-    return SceneObject(spec=spec, mesh=mesh, pieces=pieces, section=poly, rgb=rgb)
+    return BuiltObject(spec=spec, mesh=mesh, pieces=pieces, section=poly, rgb=rgb)
 
 
 def _object_colour(rng: np.random.Generator) -> tuple[float, float, float]:

@@ -2,7 +2,7 @@
 object each configuration uses.
 
 Light on purpose (no meshes, no MuJoCo): the `generate` driver plans a run from these alone;
-`vistac_sim.objects.library` builds a spec into a `SceneObject` inside the worker that needs it.
+`vistac_sim.objects.library` builds a spec into a `BuiltObject` inside the worker that needs it.
 """
 
 from __future__ import annotations

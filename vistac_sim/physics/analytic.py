@@ -17,11 +17,11 @@ import trimesh
 from shapely.geometry import box
 
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.scenes import ObjectScene
+from vistac_sim.generate.rigs import ObjectRig
 from vistac_sim.geometry import angle_deg
-from vistac_sim.objects.library import ObjectSpec, SceneObject
+from vistac_sim.hand.grasp import Grasp
+from vistac_sim.objects.library import BuiltObject, ObjectSpec
 from vistac_sim.physics.normals import surface_normals
-from vistac_sim.scene.grasp import Grasp
 
 HALF = 0.025  # m, half side of the pressed block
 HEIGHT = 0.04  # m, its height
@@ -48,7 +48,7 @@ def expected_angle_deg(push_deg: float, friction: float) -> float:
     return float(min(push_deg, np.degrees(np.arctan(friction))))
 
 
-def face_object(face: str, push_deg: float, finger_height: float) -> SceneObject:
+def face_object(face: str, push_deg: float, finger_height: float) -> BuiltObject:
     """The block whose +x face is pressed: vertical ("wall") or tilted by `push_deg` about y so
     that its normal points up ("slope_up") or down ("slope_down")."""
     tilt = 0.0 if face == "wall" else np.radians(push_deg) * (1 if face == "slope_up" else -1)
@@ -57,7 +57,7 @@ def face_object(face: str, push_deg: float, finger_height: float) -> SceneObject
                                       (front[1], HEIGHT)) for y in (-HALF, HALF)]
     mesh = trimesh.convex.convex_hull(np.array(verts))
     spec = ObjectSpec(f"{face}_{push_deg:g}", "analytic", 0, 2 * HALF, HEIGHT)
-    return SceneObject(spec, mesh, [mesh], box(-HALF, -HALF, HALF, HALF), (0.25, 0.3, 0.7))
+    return BuiltObject(spec, mesh, [mesh], box(-HALF, -HALF, HALF, HALF), (0.25, 0.3, 0.7))
 
 
 def face_grasp(face: str, push_deg: float, tip_radius: float) -> Grasp:
@@ -83,7 +83,7 @@ def analytic_press(face: str, push_deg: float, friction: float,
     cfg = cfg or GenerateCfg()
     cfg.physics.friction = friction
     obj = face_object(face, push_deg, cfg.hand.height)
-    scene = ObjectScene(obj, cfg, render=False)
+    scene = ObjectRig(obj, cfg, render=False)
     grasp = face_grasp(face, push_deg, cfg.hand.tip_radius)
     res = scene.press.run(grasp)
     normal = surface_normals(scene.triangles, grasp, res, 2 * cfg.hand.tip_half_length)

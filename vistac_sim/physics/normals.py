@@ -14,8 +14,8 @@ import numpy as np
 from vistac_sim.geometry import closest_on_segment, unit
 
 if TYPE_CHECKING:
+    from vistac_sim.hand.grasp import Grasp
     from vistac_sim.physics.press import PressResult
-    from vistac_sim.scene.grasp import Grasp
 
 # faces this close in direction count as one flat surface
 _FLAT_COS = float(np.cos(np.radians(0.5)))

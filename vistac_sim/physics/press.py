@@ -30,10 +30,10 @@ import numpy as np
 
 from vistac.dataset import FINGERS
 from vistac_sim.geometry import yaw_quat
+from vistac_sim.hand.grasp import Grasp
+from vistac_sim.hand.ids import ModelIds
 from vistac_sim.mj import mujoco
 from vistac_sim.physics.checks import RejectedSample
-from vistac_sim.scene.grasp import Grasp
-from vistac_sim.scene.ids import SceneIds
 
 _OVERRIDE = int(mujoco.mjtEnableBit.mjENBL_OVERRIDE)
 
@@ -56,7 +56,7 @@ class PressResult:
 class Press:
     """Runs presses on one compiled scene (one object); reuses its MjData."""
 
-    def __init__(self, model: mujoco.MjModel, ids: SceneIds, cfg: GenerateCfg):
+    def __init__(self, model: mujoco.MjModel, ids: ModelIds, cfg: GenerateCfg):
         self.model = model
         self.data = mujoco.MjData(model)
         self.ids = ids

@@ -1,3 +1,3 @@
-"""The orthographic top view: MuJoCo's renderer on the scene's camera (`topview`), exact pixel
+"""The orthographic top view: MuJoCo's renderer on the model's camera (`topview`), exact pixel
 boxes of the fingers (`boxes`), deterministic PNG bytes (`png`), and the render request of the
-image effects (`view`: sampled parameters; `view_render`: drawing them)."""
+image effects (`shot.Shot`: sampled parameters; `shot_render`: drawing them)."""

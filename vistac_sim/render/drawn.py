@@ -13,21 +13,21 @@ import numpy as np
 
 from vistac.dataset.schema import MASK_VALUES
 from vistac_sim.render.outlines import many_finger_shapes, polygons_box
-from vistac_sim.render.view import DrawnStyle, View
+from vistac_sim.render.shot import DrawnStyle, Shot
 
 SHIFT = 4  # sub-pixel bits of the polygon vertices handed to OpenCV
 
 
-def drawn_shapes(capsules: list[np.ndarray], view: View) -> list[tuple[list, list]]:
+def drawn_shapes(capsules: list[np.ndarray], shot: Shot) -> list[tuple[list, list]]:
     """Per finger: (polygons of its outline colour, polygons of its fill), in pixels.
 
     Without an outline the two lists are the same polygons.
     """
-    d = view.drawn
+    d = shot.drawn
     jobs = [(caps, width, 0.0, d.taper) for caps, width in zip(capsules, d.width, strict=True)]
     if d.outline:
         jobs += [(caps, width, d.outline / 2, d.taper) for caps, width, _, _ in jobs]
-    shapes = many_finger_shapes(jobs, view)
+    shapes = many_finger_shapes(jobs, shot)
     n = len(capsules)
     return [(shapes[n + k] if d.outline else shapes[k], shapes[k]) for k in range(n)]
 

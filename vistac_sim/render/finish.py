@@ -14,7 +14,7 @@ import functools
 import cv2
 import numpy as np
 
-from vistac_sim.render.view import Finish
+from vistac_sim.render.shot import Finish
 
 NOISE_MARGIN = 128  # the noise bank is this many pixels larger than the image per side
 

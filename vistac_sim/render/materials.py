@@ -3,7 +3,7 @@
 Only a scene whose effects ask for textures gets them (the clean scene's model is unchanged):
 the object bank when the object-material effect is on, the table bank when the table effect
 names texture kinds. Each texture is named ``<bank>_<kind>_<k>``; a configuration picks one per
-surface in the visual scene (`vistac_sim.render.view_render`), so the model is made once per
+surface in the visual scene (`vistac_sim.render.shot_render`), so the model is made once per
 object and never changed.
 
 The object's mesh has no texture coordinates of its own: it gets a planar projection from

@@ -1,4 +1,4 @@
-"""What a finger's capsules look like in the image of any `View`: polygons and exact-enough boxes.
+"""What a finger's capsules look like in the image of any `Shot`: polygons and exact-enough boxes.
 
 An orthographic view draws a sphere as a circle; a perspective view as an ellipse (the cone of
 rays tangent to the sphere cut by the image plane). A capsule is the convex hull of its two end
@@ -18,23 +18,23 @@ import cv2
 import numpy as np
 
 from vistac.dataset import FINGERS
+from vistac_sim.hand.ids import ModelIds
 from vistac_sim.mj import mujoco
+from vistac_sim.render.shot import Shot, rotz
 from vistac_sim.render.topview import finger_capsules
-from vistac_sim.render.view import View, rotz
-from vistac_sim.scene.ids import SceneIds
 
 SIDES = 24
 _ANGLES = np.linspace(0.0, 2 * np.pi, SIDES, endpoint=False)
 _RING = np.stack([np.cos(_ANGLES), np.sin(_ANGLES)], axis=1) / np.cos(np.pi / SIDES)
 
 
-def moved_capsules(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
-                   view: View) -> list[np.ndarray]:
+def moved_capsules(model: mujoco.MjModel, data: mujoco.MjData, ids: ModelIds,
+                   shot: Shot) -> list[np.ndarray]:
     """Per finger, (2 capsules, 2 ends, 4) rows (x, y, z, radius) in world coordinates, moved
     by the view's overlay error (turned about the fingertip, then shifted)."""
     out = []
     for k, (f, caps) in enumerate(zip(FINGERS, finger_capsules(model, data, ids), strict=True)):
-        dx, dy, da = view.overlay[k]
+        dx, dy, da = shot.overlay[k]
         pivot, rot = data.site_xpos[ids.site[f]], rotz(da)
         ends = np.array([[a, b] for a, b, _ in caps], float)  # (2, 2, 3)
         ends = pivot + (ends - pivot) @ rot.T + np.array([dx, dy, 0.0])
@@ -43,25 +43,25 @@ def moved_capsules(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
     return out
 
 
-def px_per_m_at(view: View, points: np.ndarray) -> np.ndarray:
+def px_per_m_at(shot: Shot, points: np.ndarray) -> np.ndarray:
     """Pixels per metre of the image at world points (..., 3) (for a small length across
     the view axis)."""
     points = np.asarray(points, float)
-    if not view.perspective:
-        return np.full(points.shape[:-1], view.px_per_m)
-    pos, _, _, fwd = view.frame()
-    return view.focal_px / ((points - pos) @ fwd)
+    if not shot.perspective:
+        return np.full(points.shape[:-1], shot.px_per_m)
+    pos, _, _, fwd = shot.frame()
+    return shot.focal_px / ((points - pos) @ fwd)
 
 
-def sphere_polygons(view: View, spheres: np.ndarray) -> np.ndarray:
+def sphere_polygons(shot: Shot, spheres: np.ndarray) -> np.ndarray:
     """(n, SIDES, 2) pixel polygons circumscribed about the images of spheres (n, 4) rows
     (x, y, z, radius)."""
     spheres = np.asarray(spheres, float).reshape(-1, 4)
     c, r = spheres[:, :3], spheres[:, 3]
-    if not view.perspective:
-        centre = view.project(c)
-        return centre[:, None, :] + (r * view.px_per_m)[:, None, None] * _RING[None]
-    pos, right, up, _ = view.frame()
+    if not shot.perspective:
+        centre = shot.project(c)
+        return centre[:, None, :] + (r * shot.px_per_m)[:, None, None] * _RING[None]
+    pos, right, up, _ = shot.frame()
     w = c - pos
     dist = np.sqrt(np.einsum("ij,ij->i", w, w))
     wn = w / dist[:, None]
@@ -73,7 +73,7 @@ def sphere_polygons(view: View, spheres: np.ndarray) -> np.ndarray:
     e2 = _cross(wn, e1)
     pts = m[:, None, :] + rho[:, None, None] * (_RING[None, :, :1] * e1[:, None, :]
                                                  + _RING[None, :, 1:] * e2[:, None, :])
-    return view.project(pts)
+    return shot.project(pts)
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -88,7 +88,7 @@ def hull(points: np.ndarray) -> np.ndarray:
     return cv2.convexHull(np.asarray(points, np.float32).reshape(-1, 1, 2)).reshape(-1, 2)
 
 
-def finger_shapes(capsules: np.ndarray, view: View, width: float = 1.0, grow_px: float = 0.0,
+def finger_shapes(capsules: np.ndarray, shot: Shot, width: float = 1.0, grow_px: float = 0.0,
                   taper: float = 1.0) -> list[np.ndarray]:
     """Convex pixel polygons whose union is a finger's outline in the image.
 
@@ -101,11 +101,11 @@ def finger_shapes(capsules: np.ndarray, view: View, width: float = 1.0, grow_px:
             farthest from the shaft) to the shaft's far end, whose radius is `taper` times the
             fingertip's.
     """
-    return many_finger_shapes([(capsules, width, grow_px, taper)], view)[0]
+    return many_finger_shapes([(capsules, width, grow_px, taper)], shot)[0]
 
 
 def many_finger_shapes(jobs: list[tuple[np.ndarray, float, float, float]],
-                       view: View) -> list[list[np.ndarray]]:
+                       shot: Shot) -> list[list[np.ndarray]]:
     """`finger_shapes` of several (capsules, width, grow_px, taper), projected in one batch."""
     groups: list[np.ndarray] = []  # each: the two spheres whose hull is one polygon
     counts = []
@@ -113,7 +113,7 @@ def many_finger_shapes(jobs: list[tuple[np.ndarray, float, float, float]],
         caps = np.array(capsules, float)
         caps[..., 3] *= width
         if grow_px:
-            caps[..., 3] += grow_px / px_per_m_at(view, caps[..., :3])
+            caps[..., 3] += grow_px / px_per_m_at(shot, caps[..., :3])
         if taper >= 1.0:
             groups += [caps[0], caps[1]]
             counts.append(2)
@@ -127,7 +127,7 @@ def many_finger_shapes(jobs: list[tuple[np.ndarray, float, float, float]],
         end[3] = tip[3] * taper
         groups.append(np.stack([tip, end]))
         counts.append(1)
-    polys = sphere_polygons(view, np.concatenate(groups)).reshape(len(groups), -1, 2)
+    polys = sphere_polygons(shot, np.concatenate(groups)).reshape(len(groups), -1, 2)
     hulls = [hull(p) for p in polys]
     out, k = [], 0
     for n in counts:

@@ -7,7 +7,7 @@ which process made it. Photographs are scikit-image's sample photographs (`skima
 public domain, see docs/appearance.md) and, with ``--textures DIR``, the user's own images.
 
 A scene that asks for textures gets the whole bank in its model (`vistac_sim.render.materials`);
-a configuration only picks one texture, tint and scale (`vistac_sim.render.view.Surface`).
+a configuration only picks one texture, tint and scale (`vistac_sim.render.shot.Surface`).
 """
 
 from __future__ import annotations

@@ -9,17 +9,17 @@ from __future__ import annotations
 import numpy as np
 
 from vistac.dataset import FINGERS
+from vistac_sim.hand.ids import OBJECT_GROUP_COLLISION, ModelIds
 from vistac_sim.mj import gl_context, mujoco
 from vistac_sim.render.boxes import boxes_from_outlines
 from vistac_sim.render.config import RenderCfg
 from vistac_sim.render.materials import texture_ids
-from vistac_sim.scene.ids import OBJECT_GROUP_COLLISION, SceneIds
 
 
 class TopView:
     """Renders one compiled scene from its top camera. Create it inside the worker process."""
 
-    def __init__(self, model: mujoco.MjModel, ids: SceneIds, cfg: RenderCfg, shadow_size: int = 0):
+    def __init__(self, model: mujoco.MjModel, ids: ModelIds, cfg: RenderCfg, shadow_size: int = 0):
         self.model, self.ids, self.cfg = model, ids, cfg
         model.vis.quality.shadowsize = shadow_size  # shadow map texels; 0: no shadow pass
         self.renderer = SharedContextRenderer(model, cfg.image_size)
@@ -115,7 +115,7 @@ Point = tuple[float, float, float]
 
 
 def finger_capsules(model: mujoco.MjModel, data: mujoco.MjData,
-                    ids: SceneIds) -> list[list[tuple[Point, Point, float]]]:
+                    ids: ModelIds) -> list[list[tuple[Point, Point, float]]]:
     """Per finger, its capsules (pad, shaft) as (end, end, radius) in world coordinates, in
     plain floats (a handful of numbers, read once per image)."""
     geoms = [g for f in FINGERS for g in (ids.pad[f], ids.shaft[f])]  # (finger, capsule) order
@@ -129,7 +129,7 @@ def finger_capsules(model: mujoco.MjModel, data: mujoco.MjData,
     return [caps[:2], caps[2:]]
 
 
-def finger_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
+def finger_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: ModelIds,
                  cfg: RenderCfg) -> np.ndarray:
     """(2, 4) pixel boxes (x, y, w, h; top-left origin) of the visible part of each finger.
 

@@ -4,7 +4,7 @@ A finger's approach direction is its axis (its sensor's z, as drawn in the image
 the direction the hand drives it in, the hand's closing axis, which may differ.
 
 Grasps are drawn by `vistac_sim.generate.grasps`, posed in the scene by the press, and moved by
-scene-stage effects (`Grasp.moved`).
+grasp-stage effects (`Grasp.moved`).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Index look-ups into a compiled scene model, per finger where it applies."""
+"""Index look-ups into a compiled model, per finger where it applies."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ LATERAL_JOINTS = ("side", "lift")  # the tip's sprung slides across its push, "<
 
 
 @dataclass
-class SceneIds:
-    """Index look-ups into a compiled scene model (element names of `sim_assets/hand/`)."""
+class ModelIds:
+    """Index look-ups into a compiled model (element names of `sim_assets/hand/`)."""
 
     pad: dict[str, int]
     shaft: dict[str, int]
@@ -30,7 +30,7 @@ class SceneIds:
     camera: int
 
     @classmethod
-    def of(cls, model: mujoco.MjModel) -> SceneIds:
+    def of(cls, model: mujoco.MjModel) -> ModelIds:
         def ids(kind, fmt):
             return {f: mujoco.mj_name2id(model, kind, fmt.format(f)) for f in FINGERS}
 

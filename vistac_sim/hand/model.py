@@ -1,9 +1,9 @@
-"""The scene of one object: the hand's MJCF asset, edited from the config, plus the object.
+"""The model of one object: the hand's MJCF asset, edited from the config, plus the object.
 
 `sim_assets/hand/scene.xml` (table, top camera, the object's body, contact force sensors) includes
 `hand.xml` (the two fingertips on mocap bases, a driven slide along the push and two sprung
-slides across it, drives, sensor sites). `scene_spec`
-loads them as an `MjSpec` and sets every number the config controls; `compile_scene` adds the
+slides across it, drives, sensor sites). `hand_spec`
+loads them as an `MjSpec` and sets every number the config controls; `compile_model` adds the
 object's meshes as arrays and compiles. The asset's numbers are the config defaults, so the
 default config leaves them as they are.
 """
@@ -16,18 +16,18 @@ import numpy as np
 
 from vistac.dataset import FINGERS
 from vistac_sim.assets import SCENE_XML
+from vistac_sim.hand.ids import LATERAL_JOINTS, OBJECT_GROUP_COLLISION, ModelIds
 from vistac_sim.mj import mujoco
 from vistac_sim.render.materials import add_banks, banks_of, planar_texcoords
-from vistac_sim.scene.ids import LATERAL_JOINTS, OBJECT_GROUP_COLLISION, SceneIds
 
 if TYPE_CHECKING:
     from vistac_sim.generate.config import GenerateCfg
-    from vistac_sim.objects.library import SceneObject
+    from vistac_sim.objects.library import BuiltObject
     from vistac_sim.physics.config import PhysicsCfg
 
 
-def scene_spec(cfg: GenerateCfg) -> mujoco.MjSpec:
-    """The scene without the object's geoms, sized, driven and coloured as `cfg` says."""
+def hand_spec(cfg: GenerateCfg) -> mujoco.MjSpec:
+    """The hand's model without the object's geoms, sized, driven and coloured as `cfg` says."""
     spec = mujoco.MjSpec.from_file(str(SCENE_XML))
     hand, phys, rend = cfg.hand, cfg.physics, cfg.render
     spec.option.timestep = phys.timestep
@@ -72,14 +72,14 @@ def set_contact(geom, phys: PhysicsCfg) -> None:
     geom.solimp = [*phys.solimp, 0.5, 2.0]
 
 
-def compile_scene(obj: SceneObject, cfg: GenerateCfg) -> tuple[mujoco.MjModel, SceneIds]:
-    """Compile the scene of one object.
+def compile_model(obj: BuiltObject, cfg: GenerateCfg) -> tuple[mujoco.MjModel, ModelIds]:
+    """Compile the model of the hand and one object.
 
     The object's meshes go in as arrays through `MjSpec` (formatting a 300k-face mesh as MJCF
     text and parsing it back costs seconds): the full-resolution visual mesh, which does not
     collide, and the convex pieces, which collide and are hidden in renders (group 3).
     """
-    spec = scene_spec(cfg)
+    spec = hand_spec(cfg)
     body = spec.body("object")
     banks = banks_of(cfg)  # textures only for scenes whose effects ask for them
     visual = _add_mesh_geom(spec, body, "object_visual", obj.mesh, (*obj.rgb, 1.0),
@@ -102,7 +102,7 @@ def compile_scene(obj: SceneObject, cfg: GenerateCfg) -> tuple[mujoco.MjModel, S
                            group=OBJECT_GROUP_COLLISION)
         set_contact(g, cfg.physics)
     model = spec.compile()
-    return model, SceneIds.of(model)
+    return model, ModelIds.of(model)
 
 
 def _add_mesh_geom(spec: mujoco.MjSpec, body, name: str, mesh, rgba, collide: bool, group: int):

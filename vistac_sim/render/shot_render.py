@@ -1,4 +1,4 @@
-"""Drawing a `View`: what the camera sees differs from the clean top view, the physics does not.
+"""Drawing a `Shot`: what the camera sees differs from the clean top view, the physics does not.
 
 Everything a view changes is applied to MuJoCo's *visual scene* (`MjvScene`) between
 ``update_scene`` and ``render``, so the model and the physics state are never touched and nothing
@@ -32,6 +32,7 @@ import numpy as np
 
 from vistac.dataset import FINGERS
 from vistac.dataset.schema import MASK_VALUES
+from vistac_sim.hand.ids import ModelIds
 from vistac_sim.mj import mujoco
 from vistac_sim.render import materials
 from vistac_sim.render.boxes import boxes_from_outlines
@@ -39,9 +40,8 @@ from vistac_sim.render.config import RenderCfg
 from vistac_sim.render.drawn import draw_fingers, drawn_boxes, drawn_shapes, fill_mask
 from vistac_sim.render.finish import apply_finish
 from vistac_sim.render.outlines import many_finger_shapes, moved_capsules, polygons_box
+from vistac_sim.render.shot import Shot, TableTexture, rotz
 from vistac_sim.render.topview import TopView, finger_capsules
-from vistac_sim.render.view import TableTexture, View, rotz
-from vistac_sim.scene.ids import SceneIds
 
 if TYPE_CHECKING:
     from vistac_sim.effects.registry import Pipeline
@@ -55,71 +55,71 @@ GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)  # a plain int: comparing arrays with the e
 def render_with_effects(top: TopView, data: mujoco.MjData, pipeline: Pipeline, cfg: RenderCfg,
                         rng: np.random.Generator, masks: bool = False
                         ) -> tuple[np.ndarray, np.ndarray, dict, np.ndarray | None]:
-    """Run the image effects on the clean view, then render it.
+    """Run the image effects on the clean shot, then render it.
 
     Returns:
         (RGB image, (2, 4) boxes of the drawn fingers as the image shows them, the view's
         configuration-table columns, the mask (`render_mask`) or None).
     """
-    view = pipeline.apply_image(View.of(cfg), rng)
-    shapes = drawn_shapes(moved_capsules(top.model, data, top.ids, view), view) \
-        if view.drawn is not None else None
-    rgb = render_view(top, data, view, shapes=shapes)
-    boxes = drawn_boxes(shapes, view.image_size) if shapes is not None \
-        else view_boxes(top.model, data, top.ids, view)
-    mask = render_mask(top, data, view, shapes) if masks else None
-    return rgb, boxes, view.columns(), mask
+    shot = pipeline.apply_image(Shot.of(cfg), rng)
+    shapes = drawn_shapes(moved_capsules(top.model, data, top.ids, shot), shot) \
+        if shot.drawn is not None else None
+    rgb = render_shot(top, data, shot, shapes=shapes)
+    boxes = drawn_boxes(shapes, shot.image_size) if shapes is not None \
+        else shot_boxes(top.model, data, top.ids, shot)
+    mask = render_mask(top, data, shot, shapes) if masks else None
+    return rgb, boxes, shot.columns(), mask
 
 
-def render_view(top: TopView, data: mujoco.MjData, view: View, segmentation: bool = False,
+def render_shot(top: TopView, data: mujoco.MjData, shot: Shot, segmentation: bool = False,
                 shapes: list | None = None) -> np.ndarray:
-    """RGB image (H, W, 3) uint8 of the current state as `view` sees it (or the segmentation).
+    """RGB image (H, W, 3) uint8 of the current state as `shot` sees it (or the segmentation).
 
     `shapes` are the drawn fingers' polygons when the caller has them (`drawn_shapes`).
 
     Raises:
         ValueError: the view asks for shadows from a renderer made without a shadow map.
     """
-    if view.shadows and top.model.vis.quality.shadowsize <= 0:
+    if shot.shadows and top.model.vis.quality.shadowsize <= 0:
         raise ValueError("shadows need a renderer made with a shadow map (shadow_map_size)")
     r = top.renderer
     r.update_scene(data, camera=top.ids.camera, scene_option=top.option)
-    table = _apply_view(r.scene, top, data, view)
+    table = _apply_shot(r.scene, top, data, shot)
     if segmentation:
         return _segmentation(r)
     rgb = r.render()
-    if view.texture is not None:
+    if shot.texture is not None:
         seg = _segmentation(r)
         mask = (seg[..., 1] == GEOM) & (seg[..., 0] == table)
-        gain = texture_pattern(view.texture, view.image_size, view.px_per_m)
+        gain = texture_pattern(shot.texture, shot.image_size, shot.px_per_m)
         shaded = np.clip(rgb * np.where(mask, gain, 1.0)[..., None], 0, 255)
         rgb = np.rint(shaded).astype(np.uint8)
-    if view.finish is not None:
-        rgb = apply_finish(rgb, view.finish)
-    if view.drawn is not None:
+    if shot.finish is not None:
+        rgb = apply_finish(rgb, shot.finish)
+    if shot.drawn is not None:
         if shapes is None:
-            shapes = drawn_shapes(moved_capsules(top.model, data, top.ids, view), view)
-        rgb = draw_fingers(rgb, shapes, view.drawn)
+            shapes = drawn_shapes(moved_capsules(top.model, data, top.ids, shot), shot)
+        rgb = draw_fingers(rgb, shapes, shot.drawn)
     return rgb
 
 
-def render_mask(top: TopView, data: mujoco.MjData, view: View | None = None,
+def render_mask(top: TopView, data: mujoco.MjData, shot: Shot | None = None,
                 shapes: list | None = None) -> np.ndarray:
     """(H, W) uint8 labels of what the image shows: 0 table (and anything else), 1 object,
     2 index finger, 3 thumb (the drawn finger where the view draws them, else the rendered
-    one). `view` None is the plain top view."""
-    if view is None:
+    one). `shot` None is the plain top view."""
+    if shot is None:
         seg = top.render(data, segmentation=True)
     else:
-        seg = render_view(top, data, view, segmentation=True)
+        seg = render_shot(top, data, shot, segmentation=True)
     ids = top.ids
     mask = np.zeros(seg.shape[:2], np.uint8)
     geom = seg[..., 1] == GEOM
     obj = mujoco.mj_name2id(top.model, mujoco.mjtObj.mjOBJ_GEOM, "object_visual")
     mask[geom & (seg[..., 0] == obj)] = MASK_VALUES["object"]
-    if view is not None and view.drawn is not None:
+    if shot is not None and shot.drawn is not None:
         if shapes is None:
-            shapes = drawn_shapes(moved_capsules(top.model, data, ids, view), view)
+            shapes = drawn_shapes(moved_capsules(top.model, data, ids, shot), shot)
         return fill_mask(mask, shapes)
     for f in FINGERS:
         mask[geom & np.isin(seg[..., 0], [ids.pad[f], ids.shaft[f]])] = MASK_VALUES[f]
@@ -134,19 +134,19 @@ def _segmentation(renderer: mujoco.Renderer) -> np.ndarray:
         renderer.disable_segmentation_rendering()
 
 
-def _apply_view(scn: mujoco.MjvScene, top: TopView, data: mujoco.MjData, view: View) -> int:
-    """Change the visual scene as `view` asks; returns the table's geom id."""
+def _apply_shot(scn: mujoco.MjvScene, top: TopView, data: mujoco.MjData, shot: Shot) -> int:
+    """Change the visual scene as `shot` asks; returns the table's geom id."""
     model, ids = top.model, top.ids
     table = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "table")
     banks = top.texture_ids  # empty unless the scene has textures
     obj = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "object_visual") \
         if "object" in banks else -2
-    pos, right, up, fwd = view.frame()
+    pos, right, up, fwd = shot.frame()
     lift = -OVERLAY_LIFT * fwd  # towards the camera: same pixels, in front of everything
     moves = {}
     fingers = {g for f in FINGERS for g in (ids.pad[f], ids.shaft[f])}
-    if view.drawn is None:
-        for f, (dx, dy, da) in zip(FINGERS, view.overlay, strict=True):
+    if shot.drawn is None:
+        for f, (dx, dy, da) in zip(FINGERS, shot.overlay, strict=True):
             if dx or dy or da:
                 pivot = data.site_xpos[ids.site[f]].copy()
                 for g in (ids.pad[f], ids.shaft[f]):
@@ -158,37 +158,37 @@ def _apply_view(scn: mujoco.MjvScene, top: TopView, data: mujoco.MjData, view: V
         if g.objid in moves:  # a drawn finger: painted over the scene, without a shadow
             pivot, rot, shift = moves[g.objid]
             moved = pivot + rot @ (np.asarray(g.pos, float) - pivot) + shift
-            if view.perspective:  # along the rays through the camera, shrunk alike
+            if shot.perspective:  # along the rays through the camera, shrunk alike
                 g.pos[:] = pos + PERSPECTIVE_LIFT * (moved - pos)
                 g.size[:] = PERSPECTIVE_LIFT * np.asarray(g.size, float)
             else:
                 g.pos[:] = moved + lift
             g.mat[:] = rot @ np.asarray(g.mat, float)
             g.castshadow = 0
-        elif view.drawn is not None and g.objid in fingers:  # drawn in 2D later: hide
+        elif shot.drawn is not None and g.objid in fingers:  # drawn in 2D later: hide
             g.pos[2] = HIDDEN_Z
             g.castshadow = 0
         elif g.objid == table:
-            g.rgba[:3] = view.table_rgb
+            g.rgba[:3] = shot.table_rgb
             if "table" in banks:
-                _dress(g, view.table_look, banks["table"], uniform=True)
+                _dress(g, shot.table_look, banks["table"], uniform=True)
         elif g.objid == obj:
-            if view.object_look is not None:
-                g.rgba[:3] = view.object_look.rgb
-            _dress(g, view.object_look, banks["object"], uniform=False)
-    half = view.image_size / view.px_per_m / 2
+            if shot.object_look is not None:
+                g.rgba[:3] = shot.object_look.rgb
+            _dress(g, shot.object_look, banks["object"], uniform=False)
+    half = shot.image_size / shot.px_per_m / 2
     for cam in scn.camera:  # both eyes at the same place: a mono view
         cam.pos[:], cam.forward[:], cam.up[:] = pos, fwd, up
-        if view.perspective:
-            near = 0.05 * view.distance
+        if shot.perspective:
+            near = 0.05 * shot.distance
             cam.orthographic = 0
-            cam.frustum_near, cam.frustum_far = near, 10.0 * view.distance
-            top_ = near * float(np.tan(view.camera.fovy / 2))
+            cam.frustum_near, cam.frustum_far = near, 10.0 * shot.distance
+            top_ = near * float(np.tan(shot.camera.fovy / 2))
             cam.frustum_center, cam.frustum_top, cam.frustum_bottom = 0.0, top_, -top_
         else:
             cam.frustum_center, cam.frustum_top, cam.frustum_bottom = 0.0, half, -half
-    if view.light is not None:
-        _add_key_light(scn, view)
+    if shot.light is not None:
+        _add_key_light(scn, shot)
     return table
 
 
@@ -206,8 +206,8 @@ def _dress(g: mujoco.MjvGeom, look, texture_ids: dict[str, list[int]], uniform: 
     g.specular, g.shininess = look.specular, look.shininess
 
 
-def _add_key_light(scn: mujoco.MjvScene, view: View) -> None:
-    light = view.light
+def _add_key_light(scn: mujoco.MjvScene, shot: Shot) -> None:
+    light = shot.light
     for i in range(scn.nlight):
         if scn.lights[i].headlight:
             h = scn.lights[i]
@@ -219,12 +219,12 @@ def _add_key_light(scn: mujoco.MjvScene, view: View) -> None:
     key.type = mujoco.mjtLightType.mjLIGHT_DIRECTIONAL
     key.headlight = 0
     key.dir[:] = light.direction
-    key.pos[:] = (*view.camera.center, 0.0)  # directional: centre of the shadow map
+    key.pos[:] = (*shot.camera.center, 0.0)  # directional: centre of the shadow map
     rgb = np.asarray(light.rgb, float)
     key.ambient[:], key.diffuse[:], key.specular[:] = 0.0, light.diffuse * rgb, \
         light.specular * rgb
     key.attenuation[:] = (1.0, 0.0, 0.0)
-    key.castshadow = int(view.shadows)
+    key.castshadow = int(shot.shadows)
     key.bulbradius = light.softness
 
 
@@ -242,12 +242,12 @@ def texture_pattern(texture: TableTexture, size: int, px_per_m: float) -> np.nda
     return np.maximum(1.0 + texture.strength * noise, 0.0)
 
 
-def view_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
-               view: View) -> np.ndarray:
+def shot_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: ModelIds,
+               shot: Shot) -> np.ndarray:
     """(2, 4) pixel boxes (x, y, w, h; top-left origin) of the visible part of each finger as
-    `view` draws it.
+    `shot` draws it.
 
-    As `topview.finger_boxes` (which it equals for the clean view), for any camera pose and
+    As `topview.finger_boxes` (which it equals for the clean shot), for any camera pose and
     overlay error: each capsule is moved by the overlay, its end points are projected, and the
     segment between them widened by the radius in pixels is its outline (an orthographic view
     draws a sphere as a circle of the same radius); the box bounds the union of a finger's
@@ -256,19 +256,19 @@ def view_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: SceneIds,
     perspective view draws the capsules as hulls of ellipses: their box comes from polygons
     circumscribed about them (`vistac_sim.render.outlines`).
     """
-    if view.perspective:
+    if shot.perspective:
         shapes = many_finger_shapes([(caps, 1.0, 0.0, 1.0) for caps in
-                                     moved_capsules(model, data, ids, view)], view)
-        return np.stack([polygons_box(polys, view.image_size) for polys in shapes])
-    s = view.px_per_m
+                                     moved_capsules(model, data, ids, shot)], shot)
+        return np.stack([polygons_box(polys, shot.image_size) for polys in shapes])
+    s = shot.px_per_m
     caps_px = []
     for k, (f, caps) in enumerate(zip(FINGERS, finger_capsules(model, data, ids), strict=True)):
-        dx, dy, da = view.overlay[k]
+        dx, dy, da = shot.overlay[k]
         pivot, rot = data.site_xpos[ids.site[f]], rotz(da)
         moved = []
         for a, b, r in caps:
             ends = pivot + (np.array([a, b]) - pivot) @ rot.T + np.array([dx, dy, 0.0])
-            p0, p1 = view.project(ends)
+            p0, p1 = shot.project(ends)
             moved.append((p0, p1, r * s))
         caps_px.append(moved)
-    return boxes_from_outlines(caps_px, view.image_size)
+    return boxes_from_outlines(caps_px, shot.image_size)

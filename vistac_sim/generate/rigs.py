@@ -1,7 +1,7 @@
 """What a worker builds once per object, and pressing a grasp on it.
 
-`ObjectScene` bundles the compiled model, the press, the renderer, the outline sampler and the
-normal look-up of one object; `SceneCache` keeps a few of them. `solve` presses one grasp and
+`ObjectRig` bundles the compiled model, the press, the renderer, the outline sampler and the
+normal look-up of one object; `RigCache` keeps a few of them. `solve` presses one grasp and
 checks its labels; `draw_grasp` draws grasps until one passes.
 """
 
@@ -15,13 +15,13 @@ import numpy as np
 from vistac_sim.effects.shadows import shadow_map_size
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.grasps import OutlineSampler
-from vistac_sim.objects.library import ObjectSpec, SceneObject, build_object
+from vistac_sim.hand.grasp import Grasp
+from vistac_sim.hand.model import compile_model
+from vistac_sim.objects.library import BuiltObject, ObjectSpec, build_object
 from vistac_sim.physics.checks import RejectedSample, check_physics
 from vistac_sim.physics.normals import TriangleIndex, surface_normals
 from vistac_sim.physics.press import Press, PressResult
 from vistac_sim.render.topview import TopView
-from vistac_sim.scene.grasp import Grasp
-from vistac_sim.scene.model import compile_scene
 
 
 class NoValidGrasp(RuntimeError):
@@ -34,17 +34,17 @@ class NoValidGrasp(RuntimeError):
         self.redraws = redraws
 
 
-class ObjectScene:
+class ObjectRig:
     """Everything a worker builds once per object.
 
-    `cfg` is the run's config with the hand at the object's press height (`SceneObject`).
+    `cfg` is the run's config with the hand at the object's press height (`BuiltObject`).
     """
 
-    def __init__(self, obj: SceneObject, cfg: GenerateCfg, render: bool = True):
+    def __init__(self, obj: BuiltObject, cfg: GenerateCfg, render: bool = True):
         if obj.press_height is not None and obj.press_height != cfg.hand.height:
             cfg = replace(cfg, hand=replace(cfg.hand, height=obj.press_height))
         self.obj, self.cfg = obj, cfg
-        self.model, self.ids = compile_scene(obj, cfg)
+        self.model, self.ids = compile_model(obj, cfg)
         self.press = Press(self.model, self.ids, cfg)
         self.sampler = OutlineSampler.of(obj, cfg)
         self.triangles = TriangleIndex(obj.mesh.vertices, obj.mesh.faces)
@@ -56,32 +56,32 @@ class ObjectScene:
             self.view.close()
 
 
-class SceneCache:
-    """A small LRU of `ObjectScene`s keyed by object index (renderers are costly to keep)."""
+class RigCache:
+    """A small LRU of `ObjectRig`s keyed by object index (renderers are costly to keep)."""
 
     def __init__(self, specs: list[ObjectSpec], cfg: GenerateCfg, size: int = 6, cache_dir=None):
         self.specs, self.cfg, self.size, self.cache_dir = specs, cfg, size, cache_dir
-        self._scenes: OrderedDict[int, ObjectScene] = OrderedDict()
+        self._rigs: OrderedDict[int, ObjectRig] = OrderedDict()
 
-    def get(self, index: int) -> ObjectScene:
-        if index in self._scenes:
-            self._scenes.move_to_end(index)
-            return self._scenes[index]
+    def get(self, index: int) -> ObjectRig:
+        if index in self._rigs:
+            self._rigs.move_to_end(index)
+            return self._rigs[index]
         obj = build_object(self.specs[index], self.cfg.hand.height, self.cfg.objects.min_wall,
                            self.cache_dir, self.cfg.objects.min_height)
-        scene = ObjectScene(obj, self.cfg)
-        self._scenes[index] = scene
-        if len(self._scenes) > self.size:
-            self._scenes.popitem(last=False)[1].close()
-        return scene
+        rig = ObjectRig(obj, self.cfg)
+        self._rigs[index] = rig
+        if len(self._rigs) > self.size:
+            self._rigs.popitem(last=False)[1].close()
+        return rig
 
     def close(self) -> None:
-        for scene in self._scenes.values():
-            scene.close()
-        self._scenes.clear()
+        for rig in self._rigs.values():
+            rig.close()
+        self._rigs.clear()
 
 
-def solve(scene: ObjectScene, grasp: Grasp, cfg: GenerateCfg) -> tuple[PressResult, np.ndarray]:
+def solve(rig: ObjectRig, grasp: Grasp, cfg: GenerateCfg) -> tuple[PressResult, np.ndarray]:
     """Press, then check the noise-free forces against the mesh normals (sensor frame).
 
     Returns:
@@ -90,14 +90,14 @@ def solve(scene: ObjectScene, grasp: Grasp, cfg: GenerateCfg) -> tuple[PressResu
     Raises:
         RejectedSample: from the press or the physical checks.
     """
-    res = scene.press.run(grasp)
-    world = surface_normals(scene.triangles, grasp, res, 2 * cfg.hand.tip_half_length)
+    res = rig.press.run(grasp)
+    world = surface_normals(rig.triangles, grasp, res, 2 * cfg.hand.tip_half_length)
     normal = np.einsum("kji,kj->ki", res.rotation, world)
     check_physics(res.force_sensor, normal, cfg.physics.friction, cfg.physics.cone_tolerance_deg)
     return res, normal
 
 
-def draw_grasp(scene: ObjectScene, rng: np.random.Generator,
+def draw_grasp(rig: ObjectRig, rng: np.random.Generator,
                cfg: GenerateCfg) -> tuple[Grasp, PressResult, np.ndarray, Counter]:
     """Draw grasps until one passes every check.
 
@@ -110,8 +110,8 @@ def draw_grasp(scene: ObjectScene, rng: np.random.Generator,
     redraws: Counter = Counter()
     for _ in range(cfg.grasp.max_redraws):
         try:
-            grasp = scene.sampler.sample(rng)
-            return (grasp, *solve(scene, grasp, cfg), redraws)
+            grasp = rig.sampler.sample(rng)
+            return (grasp, *solve(rig, grasp, cfg), redraws)
         except RejectedSample as exc:
             redraws[exc.reason] += 1
-    raise NoValidGrasp(scene.obj.object_id, redraws)
+    raise NoValidGrasp(rig.obj.object_id, redraws)

@@ -1,10 +1,10 @@
 """The render request of one configuration: the sampled parameters of every image effect.
 
-An image effect (`vistac_sim.effects`, stage ``image``) is ``effect(view, rng) -> view`` on a
-`View`. A `View` holds only sampled parameters (kornia-style: a sample can be replayed exactly
-from them); `vistac_sim.render.view_render` turns it into pixels and into the finger boxes the
+An image effect (`vistac_sim.effects`, stage ``image``) is ``effect(shot, rng) -> shot`` on a
+`Shot`. A `Shot` holds only sampled parameters (kornia-style: a sample can be replayed exactly
+from them); `vistac_sim.render.shot_render` turns it into pixels and into the finger boxes the
 image really shows. With image effects, the configuration row gets the view's parameters
-(`View.columns`), whose ``camera_x, camera_y, px_per_m`` describe the projection the image was
+(`Shot.columns`), whose ``camera_x, camera_y, px_per_m`` describe the projection the image was
 made with.
 """
 
@@ -141,7 +141,7 @@ class DrawnStyle:
 
 
 @dataclass(frozen=True)
-class View:
+class Shot:
     """The render request of one configuration: the sampled parameters of every image effect.
 
     Attributes:
@@ -175,7 +175,7 @@ class View:
     drawn: DrawnStyle | None = None
 
     @classmethod
-    def of(cls, cfg: RenderCfg) -> View:
+    def of(cls, cfg: RenderCfg) -> Shot:
         """The clean view of a render config."""
         return cls(cfg.image_size, cfg.view_extent, tuple(cfg.table_rgb))
 
