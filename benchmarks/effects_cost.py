@@ -24,6 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from vistac.config import apply
 from vistac_sim.effects.finger_pull import FingerPullCfg
 from vistac_sim.effects.fts3 import Fts3Cfg
 from vistac_sim.effects.placement_error import PlacementErrorCfg
@@ -56,10 +57,7 @@ def variants(n: int, seed: int) -> dict[str, tuple[GenerateCfg, bool]]:
     """name -> (config, bypass the pipeline?)."""
     def cfg(preset: str = "clean", noise: float = 0.0, recordings: bool = False, **effects):
         c = GenerateCfg.from_preset(preset, noise=noise, n=n, seed=seed)
-        for k, v in effects.items():
-            setattr(c.effects, k, v)
-        c.recording.write = recordings
-        return c
+        return apply(c, {"effects": effects, "recording": {"write": recordings}})
 
     return {
         "bypassed": (cfg(), True),

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from vistac.config import apply
 from vistac.dataset import FINGERS
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.run import generate
@@ -76,8 +77,7 @@ def drawn_stats(frictions, n: int, workers: int, seed: int) -> pd.DataFrame:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for mu in frictions:
-            cfg = GenerateCfg(n=n, seed=seed, repeats=1)
-            cfg.physics.friction = mu
+            cfg = apply(GenerateCfg(n=n, seed=seed, repeats=1), {"physics": {"friction": mu}})
             t0 = time.perf_counter()
             manifest = generate(cfg, Path(tmp) / f"mu{mu}", workers=workers, progress=False)
             configs = pd.read_parquet(Path(tmp) / f"mu{mu}" / "configs.parquet")

@@ -16,7 +16,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from vistac_sim.effects.presets import resolve
+from vistac.config import apply
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.run import generate
 
@@ -33,10 +33,9 @@ def main() -> None:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for preset in ("clean", "photo"):
-            cfg = GenerateCfg(n=args.n, seed=args.seed)
-            cfg.objects.n_objects = args.n_objects
-            cfg.effects, cfg.recording = resolve(preset)
-            cfg.render.masks = preset == "photo"
+            cfg = GenerateCfg.from_preset(preset, n=args.n, seed=args.seed)
+            cfg = apply(cfg, {"objects": {"n_objects": args.n_objects},
+                              "render": {"masks": preset == "photo"}})
             out = Path(tmp) / preset
             generate(cfg, out, workers=1, progress=False)
             names = sorted(p.name for p in (out / "images").iterdir())

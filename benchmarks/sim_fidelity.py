@@ -36,6 +36,7 @@ from pathlib import Path
 
 import numpy as np
 
+from vistac.config import apply
 from vistac.dataset import unit_labels
 from vistac_sim.effects import build_pipeline
 from vistac_sim.generate.config import GenerateCfg
@@ -116,12 +117,12 @@ def label_error(labels: np.ndarray, ref: np.ndarray) -> dict:
 
 
 def with_physics(cfg: GenerateCfg, timestep: float, settle_steps: int) -> GenerateCfg:
-    c = copy.deepcopy(cfg)
-    c.physics.timestep, c.physics.settle_steps = timestep, max(1, int(round(settle_steps)))
     # The approach phase scales with the settling phase (the same simulated time per phase).
-    c.physics.approach_steps = max(1, int(round(
-        cfg.physics.approach_steps * settle_steps / cfg.physics.settle_steps)))
-    return c
+    approach = max(1, int(round(cfg.physics.approach_steps * settle_steps
+                                / cfg.physics.settle_steps)))
+    return apply(cfg, {"physics": {"timestep": timestep,
+                                   "settle_steps": max(1, int(round(settle_steps))),
+                                   "approach_steps": approach}})
 
 
 def physics_panel(n: int, cfg: GenerateCfg) -> tuple[list[dict], np.ndarray, Configs]:
@@ -170,8 +171,7 @@ def decomposition_panel(n: int, cfg: GenerateCfg, n_objects: int) -> list[dict]:
 def image_panel(configs: Configs, cfg: GenerateCfg) -> list[dict]:
     rows = []
     for f in SIZE_FACTORS:
-        c = copy.deepcopy(cfg)
-        c.render.image_size = int(round(cfg.render.image_size * f))
+        c = apply(cfg, {"render": {"image_size": int(round(cfg.render.image_size * f))}})
         scenes = [ObjectRig(o, c) for o in configs.objects]
         errs, cpu = [], 0.0
         for k, grasp in configs.items:

@@ -1,13 +1,18 @@
 """Typed, self-validating config dataclasses: every parameter is declared once.
 
-A config is a dataclass deriving from `Config`; each field is declared with `param`: its default,
+A config is a frozen dataclass deriving from `Config` (``@dataclass(frozen=True)``; the base
+refuses any other), complete and checked where it is made: a changed config is a new one
+(`dataclasses.replace`, `apply`), checked again as a whole. Each field is declared with `param`:
+its default,
 a line of help and what it allows (``ge``/``gt``/``le``/``lt`` bounds, ``choices``). The type
 annotation says the kind of value (``float``, ``int``, ``bool``, ``str``, ``Literal[...]``,
 ``tuple[float, float]``, ``tuple[str, ...]``, ``X | None``, a nested config). That one declaration
 serves everything:
 
 - construction checks every field (`Config.__post_init__`); a violation is a `ConfigError`
-  naming the field, e.g. ``hysteresis: must be >= 0, got -0.1``;
+  naming the field, e.g. ``hysteresis: must be >= 0, got -0.1``. Configs name fields, never CLI
+  options: the CLI (`apply` with `labels`, `from_options`) puts the option in the field's place,
+  also where a message names another field (``{init}`` in `ConfigError`'s reason);
 - `apply` updates a config tree from a nested, partial mapping (a scene file, presets, CLI
   flags); its errors name the source and the dotted key (``scene.yaml: effects.fts3.hysteresis:
   ...``) or the flag (``--friction: ...``);
@@ -30,7 +35,7 @@ import math
 import os
 import types
 import typing
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any, Literal
 
@@ -45,12 +50,21 @@ class ConfigError(UserError):
 
     Attributes:
         key: The field's name (dotted for a nested config).
-        reason: What is wrong, e.g. ``must be >= 0, got -1``.
+        reason: What is wrong, e.g. ``must be >= 0, got -1``, other fields named by their names.
+        others: The other fields the reason names; the template writes each as ``{name}``, e.g.
+            ``ConfigError("freeze", "needs {init} (a run whose weights to keep)", ("init",))``.
     """
 
-    def __init__(self, key: str, reason: str):
-        super().__init__(f"{key}: {reason}")
-        self.key, self.reason = key, reason
+    def __init__(self, key: str, reason: str, others: Iterable[str] = ()):
+        self.key, self.template, self.others = key, reason, tuple(others)
+        self.reason = self.phrased(lambda name: name)
+        super().__init__(f"{key}: {self.reason}")
+
+    def phrased(self, name_of: Callable[[str], str]) -> str:
+        """The reason with each other field written as `name_of` gives it (e.g. its option)."""
+        if not self.others:
+            return self.template
+        return self.template.format(**{f: name_of(f) for f in self.others})
 
 
 def param(default: Any = dataclasses.MISSING, *, help: str = "", ge: float | None = None,
@@ -84,11 +98,15 @@ def param(default: Any = dataclasses.MISSING, *, help: str = "", ge: float | Non
 class Config:
     """Base of the config dataclasses: every field is checked when an instance is made.
 
-    Subclasses add cross-field checks by overriding `__post_init__` (calling ``super()``
-    first) and raising `ConfigError` with the field to blame.
+    Subclasses are frozen dataclasses. They add cross-field checks by overriding
+    `__post_init__` (calling ``super()`` first) and raising `ConfigError` with the field to
+    blame. A field normalised on the way (a path made absolute) is set in `__post_init__`, with
+    ``object.__setattr__`` after the checks; nothing changes a config once it is made.
     """
 
     def __post_init__(self) -> None:
+        if not type(self).__dataclass_params__.frozen:
+            raise TypeError(f"{type(self).__name__}: a Config must be @dataclass(frozen=True)")
         hints = type_hints(type(self))
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
@@ -202,7 +220,8 @@ def apply(cfg: Any, data: Any, where: str = "", prefix: str = "",
 
     A switchable part (a field ``X | None``) is switched off by ``None`` or ``false``, on with
     its current (or default) parameters by ``true``, and on with changed parameters by a table
-    of them. A nested config takes a table; any other field takes its value.
+    of them. A nested config takes a table, or a config of its class in place; any other field
+    takes its value.
 
     Args:
         cfg: The config to start from (not changed).
@@ -235,7 +254,10 @@ def apply(cfg: Any, data: Any, where: str = "", prefix: str = "",
             path = path[:len(path) - len(str(key))] + shorten(str(key), 60)
             raise UserError(f"{label(path)}: unknown key (known: {', '.join(fields)})")
         current, part = getattr(cfg, key), optional_config(hints[key])
-        if part is not None:
+        target = part or hints[key]
+        if isinstance(value, Config) and isinstance(target, type) and isinstance(value, target):
+            changes[key] = value  # a whole part, made (and checked) already
+        elif part is not None:
             if value is None or value is False:
                 changes[key] = None
             elif value is True:
@@ -250,8 +272,12 @@ def apply(cfg: Any, data: Any, where: str = "", prefix: str = "",
     try:
         return dataclasses.replace(cfg, **changes)
     except ConfigError as exc:
+        def other(name: str) -> str:
+            path = f"{prefix}.{name}" if prefix else name
+            return labels.get(path, name)
+
         path = f"{prefix}.{exc.key}" if prefix else exc.key
-        raise UserError(f"{label(path)}: {exc.reason}") from None
+        raise UserError(f"{label(path)}: {exc.phrased(other)}") from None
 
 
 def to_dict(cfg: Any) -> dict[str, Any]:
@@ -355,8 +381,10 @@ def from_options(cls: type, args: argparse.Namespace, paths: Iterable[str], **fi
     try:
         return cls(**values)
     except ConfigError as exc:
-        where = flag_of(cls, exc.key) if exc.key in paths else exc.key
-        raise UserError(f"{where}: {exc.reason}") from None
+        def name_of(key: str) -> str:
+            return flag_of(cls, key) if key in paths else key
+
+        raise UserError(f"{name_of(exc.key)}: {exc.phrased(name_of)}") from None
 
 
 def flag_labels(cls: type, paths: Iterable[str]) -> dict[str, str]:

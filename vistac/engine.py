@@ -35,7 +35,7 @@ LOCAL_OBJECT_STORE_BYTES = 128 * 2**20  # a local instance's object store: resul
 ONLY_ASSIGNED_GPUS = {"env_vars": {"RAY_ACCEL_ENV_VAR_OVERRIDE_ON_ZERO": "1"}}
 
 
-@dataclass
+@dataclass(frozen=True)
 class EngineCfg(Config):
     """Which engine runs the tasks of a command, and where."""
 

@@ -23,7 +23,7 @@ from vistac.config import Config, ConfigError, add_options, from_options, param
 from vistac.dataset import SplitCfg
 
 
-@dataclass
+@dataclass(frozen=True)
 class DemoCfg(Config):
     """The demo's small default: dataset size, training length, model and seed."""
 

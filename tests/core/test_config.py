@@ -23,7 +23,7 @@ from vistac.config import (
 from vistac.errors import UserError
 
 
-@dataclass
+@dataclass(frozen=True)
 class Part(Config):
     """A switchable part."""
 
@@ -31,7 +31,7 @@ class Part(Config):
     fingers: tuple[str, ...] = param(("index",), choices=("index", "thumb"))
 
 
-@dataclass
+@dataclass(frozen=True)
 class Tree(Config):
     """A small config tree."""
 
@@ -123,3 +123,67 @@ def test_mesh_paths_are_stored_absolute(tmp_path, monkeypatch):
     cfg = ObjectsCfg(paths=("meshes/a.stl", "~/b.obj"))
     assert cfg.paths == (str(tmp_path / "meshes" / "a.stl"),
                          str((tmp_path.home() / "b.obj").resolve()))
+
+
+def test_configs_are_frozen_and_a_changed_one_is_a_new_checked_one():
+    from vistac_sim.generate.config import GenerateCfg
+
+    @dataclass
+    class Loose(Config):
+        n: int = param(1)
+
+    with pytest.raises(TypeError, match="frozen"):
+        Loose()
+    cfg = GenerateCfg()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.physics.friction = 0.0  # a part shared by copies cannot change under them
+    changed = apply(cfg, {"physics": {"friction": 0.0}})
+    assert changed.physics.friction == 0.0 and cfg.physics.friction != 0.0
+    with pytest.raises(UserError, match="^physics.friction: must be >= 0"):
+        apply(cfg, {"physics": {"friction": -1.0}})
+
+
+def test_apply_takes_a_made_part_in_place():
+    t = apply(Tree(), {"part": Part(std=2.0), "inner": Part(std=3.0)})
+    assert t.part == Part(std=2.0) and t.inner.std == 3.0
+    with pytest.raises(UserError, match="expected a table of settings"):
+        apply(Tree(), {"part": Tree()})  # a config of another class is no part
+
+
+@dataclass(frozen=True)
+class Pair(Config):
+    """Two fields, one check across them."""
+
+    low: int = param(0)
+    high: int = param(1)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.high <= self.low:
+            raise ConfigError("high", "must be above {low}", ("low",))
+
+
+def test_a_cross_field_error_names_fields_and_the_cli_names_options():
+    with pytest.raises(ConfigError) as info:
+        Pair(low=2, high=1)
+    assert str(info.value) == "high: must be above low"
+    paths = ("low", "high")
+    parser = argparse.ArgumentParser()
+    add_options(parser, Pair, paths)
+    args = parser.parse_args(["--low", "2", "--high", "1"])
+    with pytest.raises(UserError, match=r"^--high: must be above --low$"):
+        from_options(Pair, args, paths)
+    with pytest.raises(UserError, match=r"^--high: must be above --low$"):
+        apply(Pair(), option_values(args, Pair, paths), labels=flag_labels(Pair, paths))
+
+
+def test_train_config_errors_name_fields_not_options():
+    from vistac_learn.train.config import TrainCfg
+
+    cases = [({"model": "resnet-huge"}, "model: 'resnet-huge' is unknown"),
+             ({"freeze": "features"}, "freeze: needs init RUN"),
+             ({"val_split": "train"}, "val_split: must differ from train_split (train)")]
+    for changes, message in cases:
+        with pytest.raises(ConfigError) as info:
+            TrainCfg(data="d", out="o", **changes)
+        assert str(info.value).startswith(message) and "--" not in str(info.value)

@@ -126,5 +126,5 @@ def test_box_variant_without_boxes_is_a_clear_error(ds_dir, tmp_path):
     assert base.batch(np.arange(4))["image"].shape == (4, 3, 24, 24)
     with pytest.raises(UserError, match="needs columns bbox_index"):
         SampleSet(t, t.rows(None), make_view("edge-index"), 24, ("index",))
-    with pytest.raises(UserError, match="unknown variant"):
+    with pytest.raises(UserError, match="name: must be one of"):
         V.VariantCfg("edge-pinky")

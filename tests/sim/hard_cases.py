@@ -8,7 +8,6 @@ full-resolution mesh normal) and reports the outcome. `test_hard_cases.py` runs 
 
 from __future__ import annotations
 
-import copy
 import functools
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -19,6 +18,7 @@ from shapely import affinity
 from shapely.geometry import Point, Polygon, box
 from shapely.ops import unary_union
 
+from vistac.config import apply
 from vistac.dataset import unit_labels
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.rigs import ObjectRig, solve
@@ -56,11 +56,14 @@ class Outcome:
 
 
 CASES: dict[str, Callable[[GenerateCfg], tuple[BuiltObject, Grasp]]] = {}
+CHANGES: dict[str, dict] = {}
+"""Config changes a case presses under (`vistac.config.apply` form), by case name."""
 
 
-def case(name: str):
+def case(name: str, **changes):
     def deco(fn):
         CASES[name] = fn
+        CHANGES[name] = changes
         return fn
 
     return deco
@@ -112,10 +115,9 @@ def _slip(cfg):
     return _wall_push(_cone_deg(cfg) + 2.0)
 
 
-@case("near_zero_normal_force")
+@case("near_zero_normal_force", hand={"press_force": 0.01, "standoff": 2e-5})
 def _faint(cfg):
     """A 10 mN push (ten FTS-3 resolution steps) 20 deg off the normal, from 20 um away."""
-    cfg.hand.press_force, cfg.hand.standoff = 0.01, 2e-5
     return _wall_push(20.0)
 
 
@@ -184,7 +186,7 @@ def _same_point(cfg):
 
 def run_case(name: str, cfg: GenerateCfg | None = None) -> Outcome:
     """Build and press one named hard case; never raises for a rejected grasp."""
-    cfg = copy.deepcopy(cfg or GenerateCfg())  # a case may edit its own copy (the drive)
+    cfg = apply(cfg or GenerateCfg(), CHANGES[name])
     obj, grasp = CASES[name](cfg)
     scene = ObjectRig(obj, cfg, render=False)
     try:

@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 from pressed_scenes import pressed_scene
 
+from vistac.config import apply
 from vistac_sim.effects.camera_jitter import CameraJitter, CameraJitterCfg
 from vistac_sim.effects.lighting import Lighting, LightingCfg
 from vistac_sim.effects.overlay_error import OverlayError, OverlayErrorCfg
@@ -111,8 +112,7 @@ def test_overlay_rotation_boxes_match_segmentation(scenes):
 def test_overlay_error_changes_image_not_labels(tmp_path):
     from vistac_sim.generate.run import generate
 
-    base = GenerateCfg(n=4, seed=3)
-    base.effects.noise = 0.05
+    base = apply(GenerateCfg(n=4, seed=3), {"effects": {"noise": 0.05}})
     moved = dataclasses.replace(base, effects=dataclasses.replace(
         base.effects, overlay_error=OverlayErrorCfg(offset=(0.003, 0.0))))
     generate(base, tmp_path / "a", workers=1, progress=False)
@@ -224,8 +224,7 @@ def test_shadows_off_by_default_and_only_when_asked():
 
 
 def test_shadows_darken_the_table_beside_the_object():
-    cfg = GenerateCfg()
-    cfg.effects.shadows = ShadowsCfg(elevation_deg=40.0)
+    cfg = apply(GenerateCfg(), {"effects": {"shadows": ShadowsCfg(elevation_deg=40.0)}})
     scene = pressed_scene(cfg, 2)
     try:
         assert scene.view.renderer._mjr_context.shadowSize == 2048
@@ -268,11 +267,9 @@ def test_disabled_image_effects_are_never_built_nor_called(monkeypatch, tmp_path
 def test_all_image_effects_in_the_manifest_and_columns(tmp_path):
     from vistac_sim.generate.run import generate
 
-    cfg = GenerateCfg(n=3, seed=5)
-    e = cfg.effects
-    e.overlay_error, e.camera_jitter, e.lighting = OverlayErrorCfg(), CameraJitterCfg(), \
-        LightingCfg()
-    e.shadows, e.table = ShadowsCfg(map_size=1024), TableCfg()
+    cfg = apply(GenerateCfg(n=3, seed=5), {"effects": {
+        "overlay_error": OverlayErrorCfg(), "camera_jitter": CameraJitterCfg(),
+        "lighting": LightingCfg(), "shadows": ShadowsCfg(map_size=1024), "table": TableCfg()}})
     man = generate(cfg, tmp_path / "d", workers=1, progress=False)
     assert [x["name"] for x in man["effects"]] == ["overlay_error", "camera_jitter", "lighting",
                                                   "shadows", "table"]

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from hard_cases import KNOWN_REASONS
 
+from vistac.config import apply
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.rigs import ObjectRig, solve
 from vistac_sim.geometry import angle_deg
@@ -85,8 +86,7 @@ def test_hand_closes_along_its_own_direction():
 def test_labels_spread_inside_the_cone_at_mu_08():
     """With friction 0.8 the force leaves the normal by a few degrees (median) and never by more
     than atan(0.8) + 2 deg."""
-    cfg = GenerateCfg()
-    cfg.physics.friction = 0.8
+    cfg = apply(GenerateCfg(), {"physics": {"friction": 0.8}})
     drawn = _drawn(cfg)
     ang = np.concatenate([angle_deg(res.force_sensor, normal) for _, res, normal in drawn])
     assert np.median(ang) >= 3.0
@@ -134,8 +134,7 @@ def test_grasps_are_antipodal_within_a_narrow_cone(friction):
     presses (issue 22: at friction 0 draws that slide used to exhaust the redraws)."""
     from vistac_sim.generate.grasps import cone_limit_deg
 
-    cfg = GenerateCfg()
-    cfg.physics.friction = friction
+    cfg = apply(GenerateCfg(), {"physics": {"friction": friction}})
     limit = cone_limit_deg(friction, cfg.physics.cone_tolerance_deg)
     assert limit < cfg.grasp.closing_spread_deg
     drawn = _drawn(cfg)
@@ -153,5 +152,5 @@ def test_the_default_friction_draws_as_before():
     spec = procedural_library(cfg.objects, 0)[0]
     obj = build_object(spec, cfg.hand.height)
     assert OutlineSampler.of(obj, cfg).antipodal_deg is None
-    cfg.physics.friction = 0.0
+    cfg = apply(cfg, {"physics": {"friction": 0.0}})
     assert OutlineSampler.of(obj, cfg).antipodal_deg == cfg.physics.cone_tolerance_deg

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from hard_cases import CASES, KNOWN_REASONS, run_case, thin_wall_u
 
+from vistac.config import apply
 from vistac_sim.generate.config import GenerateCfg
 
 SLID_OFF = {"no_contact", "not_settled"}  # a pad sliding along the face: out of travel or moving
@@ -12,8 +13,7 @@ SLID_OFF = {"no_contact", "not_settled"}  # a pad sliding along the face: out of
 @pytest.mark.parametrize("friction", [0.0, 0.6])
 @pytest.mark.parametrize("name", sorted(CASES))
 def test_hard_cases_give_checked_labels_or_a_named_reason(name, friction):
-    cfg = GenerateCfg()
-    cfg.physics.friction = friction
+    cfg = apply(GenerateCfg(), {"physics": {"friction": friction}})
     out = run_case(name, cfg)
     if not out.accepted:
         assert out.reason in KNOWN_REASONS
@@ -27,8 +27,7 @@ def test_hard_cases_give_checked_labels_or_a_named_reason(name, friction):
 
 
 def test_hard_case_expectations():
-    cfg = GenerateCfg()
-    cfg.physics.friction = 0.0
+    cfg = apply(GenerateCfg(), {"physics": {"friction": 0.0}})
     assert run_case("fingers_same_point", cfg).reason == "fingers_overlap"
     for name in ("sharp_convex_corner", "very_small_object", "thin_wall_1mm"):
         out = run_case(name, cfg)  # corners and tiny curved objects: the normal-cone member
@@ -36,7 +35,7 @@ def test_hard_case_expectations():
     # Pushed 85 degrees off the normal, a pad slides along the face (frictionless, or with any
     # friction below tan 85 deg) until its push slide runs out of travel: nothing to label.
     for friction in (0.0, 0.8):
-        cfg.physics.friction = friction
+        cfg = apply(cfg, {"physics": {"friction": friction}})
         assert run_case("grazing_85deg", cfg).reason in SLID_OFF
 
 
@@ -47,8 +46,7 @@ def test_thin_wall_outline_has_the_wall_it_asks_for():
 
 @pytest.mark.parametrize("friction", [0.3, 0.8])
 def test_stick_and_slip_at_the_cone_edge(friction):
-    cfg = GenerateCfg()
-    cfg.physics.friction = friction
+    cfg = apply(GenerateCfg(), {"physics": {"friction": friction}})
     cone = np.degrees(np.arctan(friction))
     stick = run_case("stick_inside_cone_edge", cfg)
     slip = run_case("slip_past_cone_edge", cfg)
@@ -61,8 +59,7 @@ def test_stick_and_slip_at_the_cone_edge(friction):
 
 @pytest.mark.parametrize("friction", [0.0, 0.8])
 def test_near_zero_normal_force_keeps_its_direction(friction):
-    cfg = GenerateCfg()
-    cfg.physics.friction = friction
+    cfg = apply(GenerateCfg(), {"physics": {"friction": friction}})
     out = run_case("near_zero_normal_force", cfg)
     assert out.accepted and np.isfinite(out.force).all()
     assert out.force[0, 2] == pytest.approx(-0.01, rel=1e-2)  # the drive's 10 mN, along the push
@@ -71,10 +68,9 @@ def test_near_zero_normal_force_keeps_its_direction(friction):
 
 
 def test_grazing_contact_with_friction_slips_to_the_cone_edge():
-    cfg = GenerateCfg()
-    cfg.physics.friction = 0.8
+    cfg = apply(GenerateCfg(), {"physics": {"friction": 0.8}})
     out = run_case("grazing_70deg_friction", cfg)
     assert out.accepted
     assert out.angle_to_normal_deg[0] == pytest.approx(np.degrees(np.arctan(0.8)), abs=1.0)
-    cfg.physics.friction = 0.0
+    cfg = apply(cfg, {"physics": {"friction": 0.0}})
     assert run_case("grazing_70deg_friction", cfg).reason in SLID_OFF

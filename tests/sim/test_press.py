@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from hard_cases import KNOWN_REASONS
 
+from vistac.config import apply
 from vistac.dataset.schema import redraw_counts
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.rigs import ObjectRig, solve
@@ -62,8 +63,7 @@ def test_every_family_presses_cleanly_and_readings_agree(family):
 
 @pytest.mark.parametrize("family", GenerateCfg().objects.families)
 def test_frictionless_force_follows_mesh_normal(family):
-    cfg = GenerateCfg()
-    cfg.physics.friction = 0.0
+    cfg = apply(GenerateCfg(), {"physics": {"friction": 0.0}})
     angles = [angle_deg(res.force_sensor, normal) for _, res, normal, _ in _presses(cfg, family, 6)]
     limit = 2.0 if family in CONCAVE_FAMILIES else 0.5
     assert np.median(angles) <= limit
@@ -90,8 +90,7 @@ def test_site_frames_in_the_model_match_sensor_rotation():
 
 
 def test_unstable_press_is_rejected_not_reset():
-    cfg = GenerateCfg()
-    cfg.hand.press_force = 1e12  # far beyond anything the solver can settle
+    cfg = apply(GenerateCfg(), {"hand": {"press_force": 1e12}})  # far beyond what can settle
     spec = procedural_library(cfg.objects, 0)[1]
     scene = ObjectRig(build_object(spec, cfg.hand.height), cfg, render=False)
     rng = np.random.default_rng(0)
@@ -112,8 +111,7 @@ def test_noise_only_repeats_share_one_physics_solve(monkeypatch):
     from vistac_sim.generate.rigs import RigCache
     from vistac_sim.physics.press import Press
 
-    cfg = GenerateCfg()
-    cfg.effects.noise = 0.05
+    cfg = apply(GenerateCfg(), {"effects": {"noise": 0.05}})
     calls = []
     run = Press.run
     monkeypatch.setattr(Press, "run", lambda self, grasp: calls.append(1) or run(self, grasp))

@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from vistac.config import apply
 from vistac_sim.assets import EXAMPLE_MESHES, HAND_XML, SCENE_XML
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.rigs import ObjectRig
@@ -52,8 +53,7 @@ def _press_clean(scene: ObjectRig, cfg: GenerateCfg, presses: int = 2) -> None:
 
 @pytest.mark.parametrize("family, friction", _variants())
 def test_every_procedural_scene_presses_without_warnings(family, friction):
-    cfg = GenerateCfg()
-    cfg.physics.friction = friction
+    cfg = apply(GenerateCfg(), {"physics": {"friction": friction}})
     spec = next(s for s in procedural_library(cfg.objects, 0) if s.family == family)
     scene = ObjectRig(build_object(spec, cfg.hand.height), cfg, render=False)
     assert scene.model.geom_condim[scene.ids.pad["index"]] == (1 if friction == 0 else 3)
@@ -62,11 +62,11 @@ def test_every_procedural_scene_presses_without_warnings(family, friction):
 
 def test_user_mesh_scenes_press_without_warnings(tmp_path):
     cfg = GenerateCfg()
-    cfg.objects.paths = (str(EXAMPLE_MESHES),)
+    cfg = apply(cfg, {"objects": {"paths": (str(EXAMPLE_MESHES),)}})
     specs, skipped = mesh_library(cfg.objects, 0, cfg.hand.height, tmp_path)
     assert len(specs) == 2 and not skipped
     for friction in (0.0, 0.6):
-        cfg.physics.friction = friction
+        cfg = apply(cfg, {"physics": {"friction": friction}})
         for spec in specs:
             obj = build_object(spec, cfg.hand.height, cache_dir=tmp_path)
             _press_clean(ObjectRig(obj, cfg, render=False), cfg)
@@ -74,7 +74,8 @@ def test_user_mesh_scenes_press_without_warnings(tmp_path):
 
 def test_config_edits_reach_the_model():
     cfg = GenerateCfg()
-    cfg.hand.tip_radius, cfg.physics.timestep, cfg.render.image_size = 0.011, 0.001, 64
+    cfg = apply(cfg, {"hand": {"tip_radius": 0.011}, "physics": {"timestep": 0.001},
+                      "render": {"image_size": 64}})
     spec = procedural_library(cfg.objects, 0)[0]
     scene = ObjectRig(build_object(spec, cfg.hand.height), cfg, render=False)
     m = scene.model

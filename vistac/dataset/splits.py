@@ -12,7 +12,7 @@ from vistac.dataset.schema import SPLITS
 from vistac.errors import UserError
 
 
-@dataclass
+@dataclass(frozen=True)
 class SplitCfg(Config):
     """How configurations are split (whole configurations or whole objects)."""
 

@@ -26,7 +26,6 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 import torch
@@ -44,11 +43,11 @@ from vistac_learn.data.perturb import (
     random_axes,
     segment,
 )
+from vistac_learn.data.rotations import ROTATION_MODES, RotationCfg  # noqa: F401 (re-exported)
 from vistac_learn.data.views import IDENTITY, Aug, SampleInfo, View
 
 TARGETS = ("mean", "press", "all")
 FINGER_CHOICES = (*FINGERS, "both")  # the values of a `--finger` option
-ROTATION_MODES = ("fixed", "random", "none")
 
 
 def fingers_of(finger: str) -> tuple[str, ...]:
@@ -58,26 +57,6 @@ def fingers_of(finger: str) -> tuple[str, ...]:
     if finger in FINGERS:
         return (finger,)
     raise UserError(f"--finger must be {', '.join(FINGER_CHOICES)}, not {finger!r}")
-
-
-@dataclass(frozen=True)
-class RotationCfg:
-    """How many samples of each configuration, at which angles of the top view.
-
-    Attributes:
-        mode: ``fixed``, ``random`` or ``none`` (see the module docstring).
-        n: Samples per configuration (``fixed`` and ``random``).
-        step_deg: Step of the fixed angles, degrees counter-clockwise in the image.
-    """
-
-    mode: Literal["fixed", "random", "none"] = "none"
-    n: int = 20
-    step_deg: float = 18.0
-
-    @property
-    def count(self) -> int:
-        """Samples per configuration."""
-        return 1 if self.mode == "none" else self.n
 
 
 @dataclass(frozen=True)

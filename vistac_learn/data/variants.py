@@ -29,6 +29,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from vistac.config import Config, param
 from vistac.dataset import FINGERS
 from vistac.dataset.schema import TABLE_RGB
 from vistac.errors import UserError
@@ -39,30 +40,20 @@ VARIANTS = tuple(f"{m}-{r}" for m in MODES for r in REGIONS)
 
 
 @dataclass(frozen=True)
-class VariantCfg:
-    """One image variant.
+class VariantCfg(Config):
+    """One image variant."""
 
-    Attributes:
-        name: ``<color|edge>-<base|crop|index|thumb>``.
-        size: Side of the square output (the model's input size).
-        margin: Added round each finger box, as a fraction of the source image side (0.05 of
-            227 px is 11 px, about one fingertip radius at the default view).
-        canny_low_ratio: Low Canny threshold as a fraction of the high one.
-        canny_floor: Smallest high threshold (gradient magnitude units of an 8-bit image), so
-            that a flat image yields no edges rather than noise.
-    """
-
-    name: str = "edge-index"
-    size: int = 100
-    margin: float = 0.05
-    canny_low_ratio: float = 0.5
-    canny_floor: float = 20.0
-
-    def __post_init__(self):
-        if self.name not in VARIANTS:
-            raise UserError(f"unknown variant {self.name!r}; choose from {', '.join(VARIANTS)}")
-        if self.size < 8:
-            raise UserError(f"variant size must be >= 8 px, not {self.size}")
+    name: str = param("edge-index", choices=VARIANTS,
+                      help="``<color|edge>-<base|crop|index|thumb>``")
+    size: int = param(100, ge=8, help="side of the square output, px (the model's input size)")
+    margin: float = param(0.05, ge=0, le=1, help="added round each finger box, as a fraction "
+                          "of the source image side (0.05 of 227 px is 11 px, about one "
+                          "fingertip radius at the default view)")
+    canny_low_ratio: float = param(0.5, gt=0, le=1, help="low Canny threshold as a fraction "
+                                   "of the high one")
+    canny_floor: float = param(20.0, ge=0, help="smallest high threshold (gradient magnitude "
+                               "units of an 8-bit image), so that a flat image yields no "
+                               "edges rather than noise")
 
     @property
     def mode(self) -> str:

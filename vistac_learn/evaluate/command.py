@@ -15,7 +15,7 @@ from vistac_learn.data.tip_coverage import MAX_MISSING_PCT
 from vistac_learn.train.config import DEVICES
 
 
-@dataclass
+@dataclass(frozen=True)
 class EvaluateCfg(Config):
     """What `vistac evaluate` scores, on which split, and where the results go."""
 

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from vistac.config import Config, param
+from vistac.config import Config, ConfigError, param
 from vistac.dataset import DatasetTables, read_manifest
 from vistac.dataset.files import check_out_dir
 from vistac.errors import UserError
@@ -121,25 +121,26 @@ class TrainCfg(Config):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        # Messages name fields (other fields as {name}); the CLI puts its options in their place.
         if self.model.lower() not in list_models() and not _is_model(self.model):
-            raise UserError(f"--model {self.model!r}: unknown; choose one of "
-                            f"{', '.join(list_models())} (`vistac models`)")
+            raise ConfigError("model", f"{self.model!r} is unknown; choose one of "
+                              f"{', '.join(list_models())} (`vistac models`)")
         if self.select != "loss" and self.select not in selectable_metrics():
-            raise UserError(f"--select {self.select!r}: not a metric; choose loss or one of "
-                            f"{', '.join(selectable_metrics())}")
+            raise ConfigError("select", f"{self.select!r} is not a metric; choose loss or one "
+                              f"of {', '.join(selectable_metrics())}")
         if self.variant in CROP_VIEWS and self.rotations != "none":
-            raise UserError(f"--rotations: the {self.variant} view turns every crop to its "
-                            "finger, so rotations change nothing; use --rotations none")
+            raise ConfigError("rotations", f"the {self.variant} view turns every crop to its "
+                              "finger, so rotations change nothing; choose none")
         if self.freeze != "none" and self.init is None:
-            raise UserError("--freeze: needs --init RUN (weights to keep fixed)")
+            raise ConfigError("freeze", "needs {init} RUN (weights to keep fixed)", ("init",))
         if self.train_split == self.val_split:
-            raise UserError(f"--val-split: must differ from --train-split "
-                            f"({self.train_split})")
+            raise ConfigError("val_split", f"must differ from {{train_split}} "
+                              f"({self.train_split})", ("train_split",))
         if self.variant not in CROP_VIEWS and self.variant.endswith(("-index", "-thumb")):
             region = self.variant.rsplit("-", 1)[1]
             if self.finger not in (region,):
-                raise UserError(f"--finger {self.finger}: variant {self.variant} shows only "
-                                f"the {region} finger; use --finger {region}")
+                raise ConfigError("finger", f"variant {self.variant} shows only the {region} "
+                                  f"finger; choose {region}, not {self.finger}")
 
     @classmethod
     def from_protocol(cls, protocol: str, **changes) -> TrainCfg:
@@ -192,7 +193,7 @@ PROTOCOLS = {"default": {}, "study": STUDY}
 def protocol_cfg(protocol: str, data: str, out: str, **changes) -> TrainCfg:
     """A `TrainCfg` of a protocol's defaults, with `changes` on top."""
     if protocol not in PROTOCOLS:
-        raise UserError(f"--protocol: must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
+        raise UserError(f"protocol: must be one of {', '.join(PROTOCOLS)}, got {protocol!r}")
     base = {f.name: f.default for f in dataclasses.fields(TrainCfg)
             if f.default is not dataclasses.MISSING}
     return TrainCfg(**(base | PROTOCOLS[protocol] | {"data": data, "out": out} | changes))

@@ -12,7 +12,7 @@ from vistac_sim.effects.registry import ConfiguredEffect, register_effect
 from vistac_sim.render.shot import Finish, Shot
 
 
-@dataclass
+@dataclass(frozen=True)
 class BlurCfg(Config):
     """Defocus and motion blur of the phone's frame."""
 

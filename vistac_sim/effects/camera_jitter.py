@@ -12,7 +12,7 @@ from vistac_sim.effects.registry import ConfiguredEffect, register_effect
 from vistac_sim.render.shot import Shot
 
 
-@dataclass
+@dataclass(frozen=True)
 class CameraJitterCfg(Config):
     """Small changes of the top camera per configuration: shift, scale, tilt and roll."""
 

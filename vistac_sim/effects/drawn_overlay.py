@@ -14,7 +14,7 @@ from vistac_sim.effects.registry import ConfiguredEffect, register_effect
 from vistac_sim.render.shot import DrawnStyle, Shot
 
 
-@dataclass
+@dataclass(frozen=True)
 class DrawnOverlayCfg(Config):
     """Fingers drawn by a person in 2D over the photograph instead of rendered: hue, saturation
     and value around green (index) and red (thumb), width, outline, anti-aliasing and shape.

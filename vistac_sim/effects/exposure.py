@@ -12,7 +12,7 @@ from vistac_sim.effects.registry import ConfiguredEffect, register_effect
 from vistac_sim.render.shot import Finish, Shot
 
 
-@dataclass
+@dataclass(frozen=True)
 class ExposureCfg(Config):
     """Exposure (a gain on every channel) and white balance (a gain on red and blue against
     green) of the phone's frame."""

@@ -12,7 +12,7 @@ from vistac.dataset import FINGERS
 from vistac_sim.effects.registry import ConfiguredEffect, register_effect
 
 
-@dataclass
+@dataclass(frozen=True)
 class FingerPullCfg(Config):
     """Sideways (sensor y) force of a finger that is pulled or slides while pressed.
 

@@ -27,7 +27,7 @@ from vistac.config import Config, ConfigError, param
 from vistac_sim.effects.registry import Effect, register_effect
 
 
-@dataclass
+@dataclass(frozen=True)
 class Fts3Cfg(Config):
     """FTS-3 fingertip sensor model, applied along the 50 Hz force series (per axis, newtons).
 

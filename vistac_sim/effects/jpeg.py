@@ -12,7 +12,7 @@ from vistac_sim.effects.registry import ConfiguredEffect, register_effect
 from vistac_sim.render.shot import Finish, Shot
 
 
-@dataclass
+@dataclass(frozen=True)
 class JpegCfg(Config):
     """JPEG compression of the phone's frame (before the fingers are drawn on it)."""
 

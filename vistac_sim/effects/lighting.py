@@ -12,7 +12,7 @@ from vistac_sim.effects.registry import ConfiguredEffect, register_effect
 from vistac_sim.render.shot import Light, Shot
 
 
-@dataclass
+@dataclass(frozen=True)
 class LightingCfg(Config):
     """A directional key light of random direction and intensity instead of the plain headlight.
 

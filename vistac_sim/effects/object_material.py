@@ -14,7 +14,7 @@ from vistac_sim.render.shot import Shot, Surface
 from vistac_sim.render.textures import OBJECT_KINDS
 
 
-@dataclass
+@dataclass(frozen=True)
 class ObjectMaterialCfg(Config):
     """The object's look per configuration: a texture (photographs, wood grain, noise, stripes,
     printed labels) or a plain colour, a tint of random hue, and specular shine."""

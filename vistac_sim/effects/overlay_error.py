@@ -12,7 +12,7 @@ from vistac_sim.effects.registry import ConfiguredEffect, register_effect
 from vistac_sim.render.shot import Shot
 
 
-@dataclass
+@dataclass(frozen=True)
 class OverlayErrorCfg(Config):
     """The drawn fingers are offset and rotated from where the fingers really were (image only).
 

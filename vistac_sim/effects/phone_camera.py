@@ -12,7 +12,7 @@ from vistac_sim.effects.registry import ConfiguredEffect, register_effect
 from vistac_sim.render.shot import Shot
 
 
-@dataclass
+@dataclass(frozen=True)
 class PhoneCameraCfg(Config):
     """A perspective camera like a phone held over the table: its field of view, a tilt off
     vertical and a roll; it stands as high as makes the working area fill the frame."""

@@ -13,7 +13,7 @@ from vistac_sim.geometry import unit
 from vistac_sim.hand.grasp import Grasp
 
 
-@dataclass
+@dataclass(frozen=True)
 class PlacementErrorCfg(Config):
     """The finger lands a little off its target on each repeat (one physics solve per repeat)."""
 

@@ -106,7 +106,7 @@ def effects_config() -> type:
     """The effects config dataclass: one field per registered effect, in registration order."""
     fields = [(r.key, r.annotation, r.declaration) for r in _REGISTRY.values()]
     cls = dataclasses.make_dataclass(
-        "EffectsCfg", fields, bases=(Config,),
+        "EffectsCfg", fields, bases=(Config,), frozen=True,
         namespace={"__doc__": "Measurement effects, one field per registered effect.\n\n"
                    "Optional effects are ``X | None`` (None: off, never built); a scene file or "
                    "preset switches any subset on with its parameters "

@@ -13,7 +13,7 @@ from vistac_sim.render.finish import NOISE_MARGIN
 from vistac_sim.render.shot import Finish, Shot
 
 
-@dataclass
+@dataclass(frozen=True)
 class SensorNoiseCfg(Config):
     """Per-pixel sensor noise: a pixel of value I (0-255) gets a Gaussian of std
     sqrt(read^2 + shot * I), read and shot drawn per configuration."""

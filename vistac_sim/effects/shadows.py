@@ -12,7 +12,7 @@ from vistac_sim.effects.registry import ConfiguredEffect, register_effect
 from vistac_sim.render.shot import HEADLIGHT, Light, Shot
 
 
-@dataclass
+@dataclass(frozen=True)
 class ShadowsCfg(Config):
     """Shadow mapping of the key light (the slower render path; only scenes that ask pay).
 

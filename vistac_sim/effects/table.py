@@ -14,7 +14,7 @@ from vistac_sim.render.shot import Shot, Surface, TableTexture
 from vistac_sim.render.textures import TABLE_KINDS
 
 
-@dataclass
+@dataclass(frozen=True)
 class TableCfg(Config):
     """Table colour and texture per configuration."""
 

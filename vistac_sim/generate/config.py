@@ -27,7 +27,7 @@ from vistac_sim.render.config import RenderCfg
 MIN_TIP_PIXELS = 3  # a fingertip drawn narrower cannot be told from noise by the tip locator
 
 
-@dataclass
+@dataclass(frozen=True)
 class GraspCfg(Config):
     """How contact targets and approach directions are drawn."""
 

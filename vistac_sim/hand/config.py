@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from vistac.config import Config, param
 
 
-@dataclass
+@dataclass(frozen=True)
 class HandCfg(Config):
     """Geometry and drive of the two fingertips (sizes in metres, forces in newtons).
 

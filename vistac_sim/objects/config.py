@@ -9,7 +9,7 @@ from vistac.config import Config, ConfigError, param
 from vistac_sim.objects.outlines import PROCEDURAL_FAMILIES
 
 
-@dataclass
+@dataclass(frozen=True)
 class ObjectsCfg(Config):
     """The object library of a run: procedural families drawn from the seed, or user meshes."""
 

@@ -16,6 +16,7 @@ import numpy as np
 import trimesh
 from shapely.geometry import box
 
+from vistac.config import apply
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.rigs import ObjectRig
 from vistac_sim.geometry import angle_deg
@@ -80,8 +81,7 @@ def analytic_press(face: str, push_deg: float, friction: float,
     Raises:
         RejectedSample: when the press fails a check (it should not, for pushes up to 60 deg).
     """
-    cfg = cfg or GenerateCfg()
-    cfg.physics.friction = friction
+    cfg = apply(cfg or GenerateCfg(), {"physics": {"friction": friction}})
     obj = face_object(face, push_deg, cfg.hand.height)
     scene = ObjectRig(obj, cfg, render=False)
     grasp = face_grasp(face, push_deg, cfg.hand.tip_radius)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from vistac.config import Config, ConfigError, param
 
 
-@dataclass
+@dataclass(frozen=True)
 class PhysicsCfg(Config):
     """MuJoCo settings of the press: contacts, friction, and the two phases of a press
     (`vistac_sim.physics.press`)."""

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from vistac.config import Config, param
 
 
-@dataclass
+@dataclass(frozen=True)
 class RecordingCfg(Config):
     """The simulated press/hold/release session of a configuration (RH8D/FTS-3 CSV stream).
 

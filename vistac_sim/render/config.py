@@ -9,7 +9,7 @@ from vistac.config import Config, param
 from vistac.dataset.schema import FINGER_RGB, TABLE_RGB
 
 
-@dataclass
+@dataclass(frozen=True)
 class RenderCfg(Config):
     """The top view: image size, the clean view's extent and colours, masks, textures."""
 

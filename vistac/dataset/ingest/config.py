@@ -44,7 +44,7 @@ class IngestCfg(Config):
                                 "sample")
 
 
-@dataclass
+@dataclass(frozen=True)
 class IngestSources(Config):
     """What to ingest and how to split it."""
 
