@@ -13,8 +13,10 @@ configs, calls the same function and prints its summary. Hence:
 
 - configs are complete where they are made (`GenerateCfg.from_preset`, `.from_file`,
   `TrainCfg.from_protocol`) and check themselves;
-- bad input raises `vistac.errors.UserError` carrying the one line the CLI prints (the CLI
-  names options, e.g. ``--data ...``; the message is the same from Python);
+- bad input raises `vistac.errors.UserError` carrying the one line the CLI prints (e.g.
+  ``--data ...``), except a config that its declaration does not allow: its
+  `vistac.config.ConfigError` names the field (``model: ...``) where the CLI names the option
+  (``--model: ...``);
 - nothing is written to stdout; ``progress=True`` draws progress bars on stderr;
 - the same config and seed give the same bytes from Python and from the CLI.
 
@@ -179,7 +181,6 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
         UserError: not a run folder, a dataset other than the run's (without
             ``cross_dataset``), an unusable output folder.
     """
-    from vistac.config import ConfigError
     from vistac.dataset import read_manifest
     from vistac.dataset.files import check_out_dir
     from vistac_learn.evaluate.command import EvaluateCfg
@@ -190,10 +191,7 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
         cfg = target
     else:
         run = target.path if isinstance(target, Run) else Path(target)
-        try:
-            cfg = EvaluateCfg(run=str(run), **options)
-        except ConfigError as exc:
-            raise UserError(f"--{exc.key.replace('_', '-')}: {exc.reason}") from None
+        cfg = EvaluateCfg(run=str(run), **options)  # a ConfigError names the field
     if cfg.data is not None:
         try:
             read_manifest(Path(cfg.data))

@@ -16,6 +16,7 @@ import pytest
 
 import vistac
 from vistac.cli import main
+from vistac.config import ConfigError
 from vistac.errors import UserError
 from vistac_sim.objects.config import ObjectsCfg
 
@@ -121,6 +122,8 @@ def test_config_errors_are_user_errors_with_the_message_the_cli_prints(tmp_path,
         vistac.open_dataset(missing)
     with pytest.raises(UserError, match="not a run folder"):
         vistac.evaluate(tmp_path)
+    with pytest.raises(ConfigError, match=r"^split: must be one of"):  # a field, not --split
+        vistac.evaluate(tmp_path, split="holdout")
 
 
 @pytest.fixture(scope="module")
