@@ -165,10 +165,17 @@ def test_nested_cells_round_trip_through_parquet(tmp_path):
     assert [c["reason"] for c in rows[1]["redraw_reasons"]] == ["fingers_overlap", "unreachable"]
 
 
-def test_older_format_version_is_refused_in_one_line(tmp_path, ds_dir):
+def test_format_1_is_read_and_older_or_newer_refused_in_one_line(tmp_path, ds_dir):
+    """Format 1 differs only in bookkeeping columns no reader needs: it is read. Others are
+    refused with what to do."""
     d = _copy(ds_dir, tmp_path / "old")
     man = json.loads((d / "manifest.json").read_text())
-    (d / "manifest.json").write_text(json.dumps(man | {"format_version": FORMAT_VERSION - 1}))
-    with pytest.raises(UserError, match="make the dataset again with this vistac") as err:
-        open_dataset(d)
-    assert "\n" not in str(err.value)
+    for version, needle in [(1, None), (0, "make the dataset again with this vistac"),
+                            (FORMAT_VERSION + 1, "update vistac"), (1.0, "make the dataset")]:
+        (d / "manifest.json").write_text(json.dumps(man | {"format_version": version}))
+        if needle is None:
+            assert len(open_dataset(d).configs) == 8
+            continue
+        with pytest.raises(UserError, match=needle) as err:
+            open_dataset(d)
+        assert "\n" not in str(err.value) and "reads (1, 2)" in str(err.value)

@@ -26,6 +26,7 @@ from vistac.dataset.schema import (
     MASKS,
     PARTIAL,
     PRESSES,
+    READ_VERSIONS,
     SPLITS,
     TABLE_RGB,
     box_columns,
@@ -173,13 +174,12 @@ def read_manifest(root: Path, require_complete: bool = True) -> dict:
     if not isinstance(manifest, dict):
         raise UserError(f"{man_path}: not a JSON object; make the dataset again")
     version = manifest.get("format_version")
-    if version != FORMAT_VERSION or isinstance(version, bool):
+    if type(version) is not int or version not in READ_VERSIONS:
         what = "missing" if version is None else f"{str(version)[:40]!r}"
-        newer = isinstance(version, int) and not isinstance(version, bool) \
-            and version > FORMAT_VERSION
-        raise UserError(f"{man_path}: format_version {what} is not {FORMAT_VERSION}, the one "
-                        "this vistac reads; " + ("update vistac" if newer else
-                                                 "make the dataset again with this vistac"))
+        newer = type(version) is int and version > FORMAT_VERSION
+        raise UserError(f"{man_path}: format_version {what} is not one this vistac reads "
+                        f"({', '.join(map(str, READ_VERSIONS))}); "
+                        + ("update vistac" if newer else "make the dataset again with this vistac"))
     if require_complete and manifest.get("complete") is not True:
         raise UserError(
             f"{man_path}: dataset is not complete (generation unfinished or interrupted; "

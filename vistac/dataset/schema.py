@@ -15,7 +15,11 @@ import numpy as np
 import pyarrow as pa
 
 FORMAT_VERSION = 2
-"""2: `redraw_reasons` and `failed_objects` are Parquet lists of structs (1: text cells)."""
+"""The version written. 2: `redraw_reasons` and `failed_objects` are Parquet lists of structs
+(1: text cells ``"reason:count,..."`` and JSON; `scene_effect_fallbacks` for
+`grasp_effect_fallbacks`)."""
+READ_VERSIONS = (1, 2)
+"""The versions read: 1 differs only in bookkeeping columns the learner does not read."""
 MANIFEST = "manifest.json"
 CONFIGS = "configs.parquet"
 PRESSES = "presses.parquet"
