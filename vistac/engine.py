@@ -36,7 +36,7 @@ import traceback
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import closing, contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any, Literal
@@ -442,14 +442,34 @@ def _serve_forks(conn: Connection, preload: tuple[str, ...]) -> None:
             return
 
 
+@dataclass
+class _Worker:
+    """The fork server's side of one worker: its process, its pipe, the items it was handed
+    and has not answered yet (in order)."""
+
+    pid: int
+    pipe: Connection
+    handed: deque = field(default_factory=deque)
+
+
 def _run_batch(conn: Connection, job: Callable[[Any], Any], workers: int,
                items: list[Any]) -> bool:
     """Fork the workers of one batch, hand them the items, pass their results on; stop them
-    early when this batch's driver says so. Returns whether to go on serving."""
+    early when this batch's driver says so. Returns whether to go on serving.
+
+    A worker holds one item more than it runs while enough are left for every worker (so it
+    never waits for this process between two items); near the end only idle workers get one.
+    """
     todo = deque(enumerate(items))
-    busy: dict[Connection, tuple[int, int]] = {}  # worker's pipe -> (pid, position)
-    pids: list[int] = []
+    crew: list[_Worker] = []
     serving = True
+
+    def hand(worker: _Worker) -> None:
+        while todo and len(worker.handed) < (2 if len(todo) >= len(crew) else 1):
+            position, item = todo.popleft()
+            worker.pipe.send((position, item))
+            worker.handed.append(position)
+
     try:
         for _ in range(min(workers, len(items))):
             mine, theirs = mp.Pipe()
@@ -457,74 +477,74 @@ def _run_batch(conn: Connection, job: Callable[[Any], Any], workers: int,
             if pid == 0:  # the worker
                 status = 1
                 try:
-                    for other in (conn, mine, *busy):
+                    for other in (conn, mine, *(w.pipe for w in crew)):
                         other.close()
                     _work(job, theirs)
                     status = 0
                 finally:
                     os._exit(status)
             theirs.close()
-            pids.append(pid)
-            position, item = todo.popleft()
-            mine.send(item)
-            busy[mine] = (pid, position)
-        while busy:
-            ready = wait([conn, *busy])
+            crew.append(_Worker(pid, mine))
+        for worker in crew:
+            hand(worker)
+        while any(w.handed for w in crew):
+            ready = wait([conn, *(w.pipe for w in crew if w.handed)])
             if conn in ready:  # the driver stopped early, or went away
                 try:
-                    message = conn.recv()
+                    serving = conn.recv() is not None
                 except EOFError:
-                    message = None
-                serving = message is not None
+                    serving = False
                 return serving
-            for pipe in ready:
-                pid, position = busy.pop(pipe)
+            for worker in (w for w in crew if w.pipe in ready):
                 try:
-                    ok, value = pipe.recv()
+                    position, ok, value = worker.pipe.recv()
                 except EOFError:
-                    _, status = os.waitpid(pid, 0)
-                    pids.remove(pid)
-                    conn.send(("died", position, f"exit status "
+                    _, status = os.waitpid(worker.pid, 0)
+                    crew.remove(worker)
+                    worker.handed.clear()
+                    conn.send(("died", None, f"exit status "
                                f"{os.waitstatus_to_exitcode(status)}"))
                     return serving
+                worker.handed.remove(position)
                 conn.send(("result", position, ok, value))
-                if todo:
-                    position, item = todo.popleft()
-                    pipe.send(item)
-                    busy[pipe] = (pid, position)
-                else:
-                    pipe.send(None)
-                    pipe.close()
+                hand(worker)
         return serving
     finally:
-        for pipe in busy:
-            pipe.close()
-        for pid in pids:  # those still busy are stopped; the others are exiting
-            if any(pid == p for p, _ in busy.values()):
-                os.kill(pid, signal.SIGTERM)
-            os.waitpid(pid, 0)
+        for worker in crew:  # those still busy are stopped; the others end on None
+            try:
+                if worker.handed:
+                    os.kill(worker.pid, signal.SIGTERM)
+                else:
+                    worker.pipe.send(None)
+            except OSError:  # it died meanwhile
+                pass
+            worker.pipe.close()
+            os.waitpid(worker.pid, 0)
         if serving:
             conn.send(("over",))
 
 
 def _work(job: Callable[[Any], Any], pipe: Connection) -> None:
-    """A worker: items from `pipe` through the job until None (or the server's end)."""
+    """A worker: (position, item) from `pipe` through the job until None (or the server's
+    end); answers (position, ok, result or error)."""
     try:
         while True:
             try:
-                item = pipe.recv()
+                handed = pipe.recv()
             except EOFError:
                 return
-            if item is None:
+            if handed is None:
                 return
+            position, item = handed
             try:
-                answer = (True, job(item))
+                answer = (position, True, job(item))
             except Exception as exc:
-                answer = (False, _portable(exc))
+                answer = (position, False, _portable(exc))
             try:
                 pipe.send(answer)
             except (pickle.PicklingError, TypeError, AttributeError) as exc:
-                pipe.send((False, _portable(RuntimeError(f"cannot send the result back: {exc}"))))
+                error = RuntimeError(f"cannot send the result back: {exc}")
+                pipe.send((position, False, _portable(error)))
     finally:
         close_job(job)
 

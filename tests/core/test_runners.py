@@ -5,8 +5,12 @@ tested in tests/scale/test_ray_runner.py."""
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
+import sys
 import time
 from multiprocessing import active_children
+from pathlib import Path
 
 import pytest
 
@@ -111,3 +115,37 @@ def test_local_runner_runs_in_order_here_and_closes_the_job(tmp_path):
     assert isinstance(got[0], ValueError) and got[1] == 4
     with pytest.raises(ValueError):
         LocalRunner(square).map([13])
+
+
+# A driver that starts two workers on long items, prints the server's and the workers' process
+# ids, and kills itself with SIGKILL.
+KILLED_DRIVER = """
+import os, signal, sys
+sys.path.insert(0, sys.argv[1])
+from test_runners import slow
+from vistac.engine import ForkServer, PoolRunner
+server = ForkServer().start()
+runs = PoolRunner(server, slow, 2).run([0.0, 60.0, 0.0, 60.0])
+print(server._process.pid, next(runs)[1], next(runs)[1], flush=True)
+os.kill(os.getpid(), signal.SIGKILL)
+"""
+
+
+def _gone(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except FileNotFoundError:
+        return True
+    return state in ("Z", "X")  # a zombie whose parent died: nothing runs any more
+
+
+def test_a_killed_driver_leaves_no_server_and_no_worker_running():
+    done = subprocess.run([sys.executable, "-c", KILLED_DRIVER, str(Path(__file__).parent)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == -signal.SIGKILL, done.stderr
+    pids = [int(p) for p in done.stdout.split()]
+    assert len(set(pids)) == 3  # the server and two workers, each busy with a 60 s item
+    deadline = time.monotonic() + 30
+    while not all(_gone(p) for p in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert all(_gone(p) for p in pids)
