@@ -1,4 +1,5 @@
-"""Where the work of `generate` and `tune` runs: local processes, or Ray tasks on a cluster.
+"""Where the work of `generate`, `tune` and the experiments runs: this process, worker processes
+forked from a fork server, or Ray tasks on a cluster.
 
 `EngineCfg` holds the options (``--engine``, ``--ray-address``, ``--max-concurrent``, and
 for `generate` ``--ray-writes``);
@@ -20,6 +21,8 @@ in each process that ran it, at the end (its per-process state: scenes, renderer
 - `PoolRunner`: worker processes forked from a `ForkServer`, a process that imported the
   workers' modules once (each worker is a fork of it, so none imports them again);
 - `RayRunner`: Ray tasks, on a local Ray instance or a cluster.
+
+`check_workers` checks a ``--workers`` count (0: all cores).
 """
 
 from __future__ import annotations

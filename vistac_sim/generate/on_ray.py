@@ -75,10 +75,12 @@ class ChunkJob:
         object.__setattr__(self, "maker", ChunkMaker(self.cfg, self.specs, SCENES_PER_WORKER))
 
     def __call__(self, chunk: Chunk) -> MadeChunk:
+        # Made first: making imports MuJoCo the simulator's way (`vistac_sim.mj`, which picks
+        # the headless GL backend), where `files.versions` would import it plainly.
+        made = self.maker.make(chunk)
         node, versions = socket.gethostname(), files.versions(*VERSIONED)
         if self.out is not None:
             self.check_writable(node, versions)
-        made = self.maker.make(chunk)
         if self.out is None:
             return MadeChunk(chunk.index, made, node, versions)
         return MadeChunk(chunk.index, [], node, versions, commit_chunk(Path(self.out),
