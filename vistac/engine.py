@@ -345,28 +345,31 @@ class ForkServer:
     def _batch(self, job: Callable[[Any], Any], workers: int,
                items: list[Any]) -> Iterator[tuple]:
         """The server's messages about one batch: ``("result", position, ok, value)`` and
-        ``("died", position, status)``, until the batch is over."""
+        ``("died", None, status)``, until the batch is over.
+
+        Raises:
+            WorkerDied: the server itself is gone (killed).
+        """
         conn = self.start()._conn
-        conn.send(("batch", job, workers, items))
         over = False
         try:
+            conn.send(("batch", job, workers, items))
             while True:
-                try:
-                    message = conn.recv()
-                except EOFError:
-                    over = True
-                    raise WorkerDied("the fork server of the workers died") from None
+                message = conn.recv()
                 if message[0] == "over":
                     over = True
                     return
                 yield message
+        except (EOFError, OSError):
+            over = True
+            raise WorkerDied("the fork server of the workers died") from None
         finally:
             if not over:  # stopped early: the server stops the workers, then says "over"
-                conn.send(("stop",))
                 try:
+                    conn.send(("stop",))
                     while conn.recv()[0] != "over":
                         pass
-                except EOFError:
+                except (EOFError, OSError):
                     pass
 
 

@@ -101,6 +101,14 @@ def test_a_dead_worker_is_an_error_and_an_early_stop_stops_the_workers(server):
         os.kill(pid, 0)  # the workers are gone (waited for by the server)
 
 
+def test_a_killed_server_is_an_error_not_a_hang():
+    with ForkServer() as forks:
+        assert PoolRunner(forks, square, 1).map([3]) == [9]
+        os.kill(forks._process.pid, signal.SIGKILL)
+        with pytest.raises(WorkerDied, match="the fork server of the workers died"):
+            PoolRunner(forks, square, 1).map([3])
+
+
 def test_call_runs_in_a_new_worker(server):
     assert server.call(pow, 2, 10) == 1024
     assert server.call(os.getpid) not in (os.getpid(), server.call(os.getpid))
