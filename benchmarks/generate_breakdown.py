@@ -35,7 +35,7 @@ PARTS: dict[str, list[tuple[str, str]]] = {
                                        ("session.py", "simulate_session")],
     "PNG encode": [("png.py", "encode_png")],
     "image write": [("files.py", "atomic_write_bytes"), ("pathlib.py", "write_bytes"),
-                    ("worker.py", "_write_image")],
+                    ("chunks.py", "_write_image")],
     "shard write (Arrow per chunk)": [("shards.py", "write_shard")],
     "final tables and manifest": [("shards.py", "finalize")],
     "scene close": [("scenes.py", "close")],
@@ -83,13 +83,17 @@ def _profiled(fn, *args) -> tuple[pstats.Stats, float]:
 
 def profile_generate(n: int, seed: int, out: Path) -> dict[str, float]:
     """Per-sample breakdown (ms) of an in-process `generate` of `n` configurations."""
-    # Imported before the clock, as generate's fork server imports the worker module and pandas
-    # (`processes.PRELOAD`) before its workers start; the bare loop's likewise.
-    import pandas  # noqa: F401
+    # Imported before the clock, as generate's fork server imports the workers' modules and
+    # pandas (`vistac_sim.generate.WORKER_MODULES`) before its workers start; the bare loop's
+    # likewise.
+    import importlib
 
+    from vistac_sim.generate import WORKER_MODULES
     from vistac_sim.generate.config import GenerateCfg
     from vistac_sim.generate.run import generate
-    from vistac_sim.generate.worker import make_chunk  # noqa: F401
+
+    for name in WORKER_MODULES:
+        importlib.import_module(name)
 
     cfg = GenerateCfg.from_preset(noise=0.05, n=n, seed=seed)  # what the benchmark's CLI run uses
     shutil.rmtree(out, ignore_errors=True)

@@ -108,7 +108,7 @@ def _children_cpu() -> float:
 
 
 # modules a bare worker uses: imported once by the fork server its workers fork from, as
-# generate's workers are (`vistac_sim.generate.processes.worker_context`)
+# generate's workers are (`vistac.engine.ForkServer`)
 BARE_PRELOAD = ["vistac_sim.generate.config", "vistac_sim.generate.rigs",
                 "vistac_sim.objects.library", "vistac_sim.render.png", "vistac_sim.mj"]
 

@@ -179,10 +179,11 @@ def driver_chunk_cost(chunk_size: int, repeats: int, out: Path) -> dict[str, flo
     from vistac.config import apply
     from vistac.dataset.schema import IMAGES, PARTIAL
     from vistac_sim.effects import build_pipeline
+    from vistac_sim.generate.chunks import commit_chunk, make_chunk
     from vistac_sim.generate.config import GenerateCfg
+    from vistac_sim.generate.plan import plan_chunks
     from vistac_sim.generate.rigs import RigCache
-    from vistac_sim.generate.run import object_specs, plan_chunks
-    from vistac_sim.generate.worker import commit_chunk, make_chunk
+    from vistac_sim.generate.run import object_specs
     from vistac_sim.objects.decomposition import default_cache_dir
 
     cfg = apply(GenerateCfg(n=chunk_size, seed=7), {"objects": {"n_objects": 1}})

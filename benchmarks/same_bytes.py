@@ -2,9 +2,10 @@
 (same options, same seed) and compare every file byte for byte; the manifests are compared
 without their run-dependent fields (wall time, workers, versions).
 
-Writes `benchmarks/results/same_bytes.md`.
+Writes `benchmarks/results/same_bytes.md` (or `--results`).
 
-    python benchmarks/same_bytes.py --before-src SRC [--n 300] [-- --preset lab --recordings]
+    python benchmarks/same_bytes.py --before-src SRC [--n 300] [--change TEXT] [--results FILE]
+        [-- --preset lab --recordings]
 """
 
 from __future__ import annotations
@@ -43,6 +44,10 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--before-src", type=Path, required=True)
     p.add_argument("--n", type=int, default=300)
+    p.add_argument("--change", default="issue 22's simulator changes (session memory, "
+                   "friction-aware sampling, resume checks)",
+                   help="what the before tree lacks (written into the results)")
+    p.add_argument("--results", type=Path, default=ROOT / "results" / "same_bytes.md")
     p.add_argument("extra", nargs="*", help="more generate options (after --)")
     args = p.parse_args(argv)
     work = Path(tempfile.mkdtemp(prefix="same_bytes_"))
@@ -54,14 +59,13 @@ def main(argv: list[str] | None = None) -> int:
     same_manifest = manifest(work / "now") == manifest(work / "before")
     lines = ["# Same bytes before and after", "",
              f"`vistac generate --n {args.n} {' '.join(extra)}` with this tree and with the "
-             "tree before issue 22's simulator changes (session memory, friction-aware "
-             "sampling, resume checks). Command: `python benchmarks/same_bytes.py --before-src "
-             f"SRC --n {args.n} -- {' '.join(extra)}`.", "",
+             f"tree before {args.change}. Command: `python benchmarks/same_bytes.py "
+             f"--before-src SRC --n {args.n} -- {' '.join(extra)}`.", "",
              f"- files compared: {len(a)} (tables, images, recordings)",
              f"- files that differ: {len(differ)}" + (f" ({', '.join(differ[:5])})"
                                                       if differ else ""),
              f"- manifests equal without {', '.join(RUN_FIELDS)}: {same_manifest}", ""]
-    (ROOT / "results" / "same_bytes.md").write_text("\n".join(lines))
+    args.results.write_text("\n".join(lines))
     print("\n".join(lines))
     return 0 if not differ and same_manifest else 1
 

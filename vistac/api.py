@@ -70,9 +70,11 @@ def generate(cfg: GenerateCfg, out: str | Path, *, workers: int = 0, resume: boo
         UserError: a missing ``--objects`` path, an unusable `out`, bad meshes (strict), no
             usable object.
     """
+    from contextlib import nullcontext
+
     from vistac.dataset.files import check_out_dir
-    from vistac.engine import EngineCfg
-    from vistac_sim.generate.processes import check_workers, start_fork_server, stop_fork_server
+    from vistac.engine import EngineCfg, ForkServer, check_workers
+    from vistac_sim.generate import WORKER_MODULES
 
     for path in cfg.objects.paths:
         if not Path(path).exists():
@@ -88,15 +90,14 @@ def generate(cfg: GenerateCfg, out: str | Path, *, workers: int = 0, resume: boo
     workers = check_workers(workers)
     engine = engine or EngineCfg()
     out = check_out_dir(out)
-    if engine.engine == "local" and workers > 1:
-        start_fork_server()  # the workers' imports run beside this process's own, below
-    try:  # the run holds the folder's lock; it cleans up only what it made itself
+    forks = engine.engine == "local" and workers > 1
+    # started first, the fork server's imports run beside this process's own, below
+    with ForkServer(WORKER_MODULES) if forks else nullcontext() as server:
         from vistac_sim.generate.run import generate as run_generation
 
+        # the run holds the folder's lock; it cleans up only what it made itself
         manifest = run_generation(cfg, out, workers=workers, resume=resume, progress=progress,
-                                  engine=engine)
-    finally:
-        stop_fork_server()
+                                  engine=engine, server=server)
     return Dataset(out, already_complete=bool(manifest.get("already_complete")))
 
 

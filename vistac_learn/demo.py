@@ -148,7 +148,7 @@ OPTIONS = tuple(f.name for f in dataclasses.fields(DemoCfg))
 
 def _handler(args: argparse.Namespace) -> int:
     from vistac.dataset.files import check_out_dir
-    from vistac_sim.generate.processes import check_workers
+    from vistac.engine import check_workers
 
     cfg = from_options(DemoCfg, args, OPTIONS)
     check_out_dir(cfg.out)

@@ -25,24 +25,24 @@ def _enospc(*args, **kwargs):
 
 
 def test_a_truncated_shard_is_made_again_on_resume(env, monkeypatch, capsys):
-    import vistac_sim.generate.worker as run_mod
+    from vistac_sim.generate.chunks import ChunkWork
 
     root = env["root"] / "truncated"
     args = ["--n", "4", "--image-size", "32", "--n-objects", "1", "--repeats", "1",
             "--chunk-size", "1", "--workers", "1", "--no-progress"]
     assert main(["generate", "--out", str(root / "ref"), *args]) == 0
     out = root / "d"
-    original, done = run_mod.run_chunk, []
+    original, done = ChunkWork.run_chunk, []
 
-    def stops_after_two(chunk):
+    def stops_after_two(work, chunk):
         if len(done) == 2:
             raise KeyboardInterrupt
         done.append(chunk)
-        return original(chunk)
+        return original(work, chunk)
 
-    monkeypatch.setattr(run_mod, "run_chunk", stops_after_two)
+    monkeypatch.setattr(ChunkWork, "run_chunk", stops_after_two)
     assert main(["generate", "--out", str(out), *args]) == 130
-    monkeypatch.setattr(run_mod, "run_chunk", original)
+    monkeypatch.setattr(ChunkWork, "run_chunk", original)
     shards = sorted((out / ".partial" / "shards").glob(f"*.configs{SHARD}"))
     assert len(shards) == 2
     shards[0].write_bytes(shards[0].read_bytes()[:40])  # a damaged shard

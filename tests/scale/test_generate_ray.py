@@ -13,7 +13,7 @@ from vistac.cli import main
 from vistac.errors import UserError
 from vistac_sim.generate import on_ray
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.run import plan_chunks
+from vistac_sim.generate.plan import plan_chunks
 from vistac_sim.generate.shards import SHARD
 
 ARGS = ["--n", "18", "--seed", "5", "--noise", "0.05", "--n-objects", "3", "--chunk-size", "3",

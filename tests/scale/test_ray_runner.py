@@ -135,3 +135,22 @@ def test_errors_returned_raised_or_propagated(ray):
 def test_a_task_asking_for_no_gpu_sees_none_in_only_assigned_gpus(ray):
     runner = RayRunner(ray, env_of, runtime_env=ONLY_ASSIGNED_GPUS)
     assert runner.map(["CUDA_VISIBLE_DEVICES"]) == [""]
+
+
+class Counting:
+    """Counts the items its process ran: state a job keeps from one task to the next."""
+
+    def __init__(self):
+        self.seen = 0
+
+    def __call__(self, x: int) -> tuple[int, int]:
+        self.seen += 1
+        return os.getpid(), self.seen
+
+
+def test_each_worker_process_keeps_the_job_and_its_state(ray):
+    results = RayRunner(ray, Counting(), max_concurrent=1).map(range(8))
+    for pid in {p for p, _ in results}:  # each process counts its own tasks, from 1 on
+        counts = [n for p, n in results if p == pid]
+        assert counts == list(range(1, len(counts) + 1))
+    assert max(n for _, n in results) > 1  # the job was not shipped again with each task

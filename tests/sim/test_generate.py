@@ -103,9 +103,9 @@ def test_same_seed_same_bytes_whatever_the_workers(tmp_path):
     assert _gen(tmp_path / "w2", *args, "--workers", "2") == 0
     # The run left no process behind (its fork server stopped and was waited for, so the
     # workers' CPU time counts among this process's children).
-    from multiprocessing import active_children, forkserver
+    from multiprocessing import active_children
 
-    assert not active_children() and forkserver._forkserver._forkserver_pid is None
+    assert not active_children()
     assert _children_cpu() > cpu_before
     for name in ("presses.parquet", "configs.parquet"):
         assert (tmp_path / "w1" / name).read_bytes() == (tmp_path / "w2" / name).read_bytes()
@@ -240,7 +240,7 @@ def test_pixel_mapping_columns_agree_with_manifest(small_dataset):
 
 
 def test_tasks_hold_one_object_and_cover_every_chunk_once():
-    from vistac_sim.generate.run import plan_chunks, plan_tasks
+    from vistac_sim.generate.plan import plan_chunks, plan_tasks
 
     chunks = plan_chunks(3000, 0, 7, 50)
     for workers in (1, 2, 5):
@@ -255,10 +255,7 @@ def test_tasks_hold_one_object_and_cover_every_chunk_once():
 def test_a_merge_worker_that_dies_is_an_error_not_a_hang():
     """The final merge runs in a worker of its own: if it is killed (out of memory), the run
     fails with a message instead of waiting forever."""
-    from vistac_sim.generate import processes
+    from vistac.engine import ForkServer, WorkerDied
 
-    try:
-        with pytest.raises(RuntimeError, match="_exit: its worker process died"):
-            processes.in_new_worker(os._exit, 3)
-    finally:
-        processes.stop_fork_server()
+    with ForkServer() as server, pytest.raises(WorkerDied, match="_exit: its worker process died"):
+        server.call(os._exit, 3)

@@ -7,7 +7,7 @@ import pytest
 
 from vistac.cli import main
 from vistac.dataset.recordings import HEADER
-from vistac_sim.generate import worker as generate_mod
+from vistac_sim.generate.chunks import ChunkWork
 
 ARGS = ["--n", "6", "--seed", "3", "--workers", "1", "--no-progress", "--n-objects", "3",
         "--chunk-size", "2", "--preset", "lab", "--noise", "0.02", "--recordings"]
@@ -72,18 +72,18 @@ def test_study_preprocessing_recovers_each_press_of_presses_parquet(lab_run):
 
 def test_interrupted_run_resumes_to_identical_recordings(lab_run, tmp_path, monkeypatch):
     out = tmp_path / "d"
-    original, done = generate_mod.run_chunk, []
+    original, done = ChunkWork.run_chunk, []
 
-    def dies_on_second_chunk(chunk):
+    def dies_on_second_chunk(work, chunk):
         if done:
             raise KeyboardInterrupt
         done.append(chunk)
-        return original(chunk)
+        return original(work, chunk)
 
-    monkeypatch.setattr(generate_mod, "run_chunk", dies_on_second_chunk)
+    monkeypatch.setattr(ChunkWork, "run_chunk", dies_on_second_chunk)
     assert main(["generate", "--out", str(out), *ARGS]) == 130
     assert not (out / "manifest.json").exists()
-    monkeypatch.setattr(generate_mod, "run_chunk", original)
+    monkeypatch.setattr(ChunkWork, "run_chunk", original)
     assert main(["generate", "--out", str(out), "--resume", *ARGS]) == 0
     a = sorted((lab_run / "recordings").iterdir())
     b = sorted((out / "recordings").iterdir())

@@ -2,8 +2,9 @@
 
 `vistac train`, `vistac tune` and the experiments all run their training through `run_job`, a
 plain top-level function of one picklable config (`JobCfg`), so that a runner can execute jobs
-in this process (`LocalRunner`) or as Ray tasks (`vistac.engine.RayRunner`, same interface:
-``runner.run(items)`` yields ``(position, result)`` as jobs finish; ``runner.concurrency``).
+in this process (`LocalRunner`) or as Ray tasks (`vistac.engine.RayRunner`): the runners of
+`vistac.engine`, one interface (``runner.run(items)`` yields ``(position, result)`` as jobs
+finish; ``runner.concurrency``).
 
 The objective of a job is the validation median angle to the cone mean (degrees, averaged over
 the run's fingers) at the epoch the run selected: the test split never enters it.
@@ -12,11 +13,12 @@ the run's fingers) at the epoch the run selected: the test split never enters it
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from vistac import engine
 from vistac.config import Config, param
 from vistac.errors import UserError
 from vistac_learn.data.samples import fingers_of
@@ -114,31 +116,11 @@ def run_job(cfg: JobCfg) -> JobResult:
                      time.perf_counter() - t0)
 
 
-class LocalRunner:
-    """Runs job configs one after the other in this process (the interface of
-    `vistac.engine.RayRunner`).
-
-    Args:
-        job: Job config -> result.
-        returned_errors: Exception types a job raises as its result (yielded in its place);
-            any other exception propagates.
-    """
-
-    concurrency = 1
+class LocalRunner(engine.LocalRunner):
+    """Runs training jobs one after the other in this process (`vistac.engine.LocalRunner`,
+    whose interface `vistac.engine.RayRunner` shares), by default `run_job` with a diverged
+    loss as its result."""
 
     def __init__(self, job: Callable[[Any], Any] = run_job,
                  returned_errors: tuple[type[BaseException], ...] = (TrainingDiverged,)):
-        self.job, self.returned_errors = job, tuple(returned_errors)
-
-    def run(self, items: Iterable[Any]) -> Iterator[tuple[int, Any]]:
-        """(position, result) of each item, in order (items are drawn one at a time)."""
-        for position, item in enumerate(items):
-            try:
-                result = self.job(item)
-            except self.returned_errors as exc:
-                result = exc
-            yield position, result
-
-    def map(self, items: Iterable[Any]) -> list[Any]:
-        """The results in the order of `items`."""
-        return [r for _, r in self.run(items)]
+        super().__init__(job, returned_errors)

@@ -2,7 +2,7 @@
 
 `screen_objects` keeps the objects whose screening passed: each object is built once, in a
 worker, and grasps are drawn (seeded by the run's seed and the object's place in the library)
-until one passes every check (`vistac_sim.generate.worker.screen_object`). An object that fails
+until one passes every check (`vistac_sim.generate.screening.screen_object`). An object that fails
 to build, or
 gives no valid grasp in `grasp.max_redraws` draws, is skipped with its reason (an error with
 `--strict`); the run's configurations are spread over the objects that remain, so the count asked
@@ -33,7 +33,7 @@ def screen_objects(specs: list[ObjectSpec], cfg: GenerateCfg,
     Args:
         specs: the object library.
         cfg: the run's config (`objects.strict`).
-        outcomes: per spec, in order, what `vistac_sim.generate.worker.screen_object` found:
+        outcomes: per spec, in order, what `vistac_sim.generate.screening.screen_object` found:
             None or the reason to skip it, its rejected draws, the repairs made to its mesh.
         progress: show a progress bar.
 

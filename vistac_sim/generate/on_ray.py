@@ -24,30 +24,28 @@ the versions each task reports are checked and a mismatch stops the run. User me
 
 from __future__ import annotations
 
-import hashlib
-import json
 import secrets
 import socket
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from vistac.dataset import files
 from vistac.dataset.schema import PARTIAL
 from vistac.engine import EngineCfg, RayRunner, ray_session
 from vistac.errors import UserError
-from vistac_sim.effects import build_pipeline
+from vistac_sim.generate.chunks import ChunkMaker, commit_chunk
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.configuration import Configuration
-from vistac_sim.generate.rigs import RigCache
-from vistac_sim.generate.run import VERSIONED, Chunk
-from vistac_sim.generate.worker import commit_chunk, make_chunk
-from vistac_sim.objects.decomposition import default_cache_dir
+from vistac_sim.generate.plan import VERSIONED, Chunk
 from vistac_sim.objects.specs import ObjectSpec
+
+if TYPE_CHECKING:
+    from vistac_sim.generate.configuration import Configuration
 
 TASK_CPUS = 1
 TASK_RETRIES = 3
-
+SCENES_PER_WORKER = 64  # a Ray worker gets chunks of any object
 
 @dataclass
 class MadeChunk:
@@ -63,25 +61,26 @@ class MadeChunk:
 
 @dataclass(frozen=True)
 class ChunkJob:
-    """The job of every task of a run: chunk -> `MadeChunk` (picklable, shipped once)."""
+    """The job of every task of a run: chunk -> `MadeChunk` (picklable, shipped once to each
+    Ray worker process, which keeps it and so its scenes from one chunk to the next)."""
 
     cfg: GenerateCfg
     specs: tuple[ObjectSpec, ...]
     out: str | None = None  # set: the worker commits into this shared folder itself
     marker: str = ""  # a file the driver wrote under out/.partial: proof of the same folder
     versions: tuple[tuple[str, str], ...] = ()  # the driver's (checked before a worker writes)
+    maker: ChunkMaker = field(init=False, compare=False, repr=False)
 
-    @property
-    def key(self) -> str:
-        text = json.dumps([self.cfg.to_dict(), [s.__dict__ for s in self.specs]], sort_keys=True)
-        return hashlib.sha1(text.encode()).hexdigest()
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "maker", ChunkMaker(self.cfg, self.specs, SCENES_PER_WORKER))
 
     def __call__(self, chunk: Chunk) -> MadeChunk:
+        # Made first: making imports MuJoCo the simulator's way (`vistac_sim.mj`, which picks
+        # the headless GL backend), where `files.versions` would import it plainly.
+        made = self.maker.make(chunk)
         node, versions = socket.gethostname(), files.versions(*VERSIONED)
         if self.out is not None:
             self.check_writable(node, versions)
-        scenes, pipeline = _worker_state(self)
-        made = make_chunk(chunk, self.cfg, scenes, pipeline)
         if self.out is None:
             return MadeChunk(chunk.index, made, node, versions)
         return MadeChunk(chunk.index, [], node, versions, commit_chunk(Path(self.out),
@@ -104,20 +103,6 @@ class ChunkJob:
 def _version_error(node: str, theirs: dict[str, str], mine: dict[str, str]) -> UserError:
     return UserError(f"--engine ray: node {node} runs {theirs}, this driver {mine}; install the "
                      "same environment on every node")
-
-
-_STATE: dict = {}  # per worker process: the scenes (and renderers) of the current run
-
-
-def _worker_state(job: ChunkJob) -> tuple[RigCache, object]:
-    """The scene cache and effect pipeline of `job`'s run, built once per worker process."""
-    if _STATE.get("key") != job.key:
-        if "scenes" in _STATE:
-            _STATE["scenes"].close()
-        _STATE.update(key=job.key, pipeline=build_pipeline(job.cfg.effects),
-                      scenes=RigCache(list(job.specs), job.cfg, size=64,
-                                        cache_dir=default_cache_dir()))
-    return _STATE["scenes"], _STATE["pipeline"]
 
 
 def run_chunks_on_ray(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[Chunk],

@@ -1,13 +1,12 @@
 """`vistac generate`: many configurations, in worker processes, into a dataset directory.
 
-This module is the driver: it plans and bookkeeps, and imports nothing that builds a scene (no
-meshes, MuJoCo or renderer; those live in `vistac_sim.generate.worker`, imported by the workers).
-Objects are screened in the workers, then the work is cut into chunks of configurations that
-share one object (so a worker builds each object's scene and renderer once). Workers take tasks
-of consecutive chunks of the same object (`plan_tasks`), so each object's scene is built by about
-one worker, not by all. A chunk is a pure function of (seed, config ids, config), so the dataset
-is identical whatever the number of workers, and a resumed run redoes exactly the chunks that had
-not committed their shard.
+This module is the driver: it plans (`plan`) and bookkeeps (`shards`), and imports nothing that
+builds a scene (no meshes, MuJoCo or renderer: those live in `chunks` and `screening`, which the
+workers import, or this process when it runs with one worker). Objects are screened in the
+workers, then the work is cut into chunks of configurations that share one object (so a worker
+builds each object's scene and renderer once), grouped into tasks of consecutive chunks of the
+same object. Where they run is a runner of `vistac.engine`: this process (`LocalRunner`),
+workers forked from a fork server (`PoolRunner`), or Ray tasks (`on_ray`).
 """
 
 from __future__ import annotations
@@ -15,70 +14,25 @@ from __future__ import annotations
 import multiprocessing as mp
 import shutil
 import time
-from collections.abc import Callable, Generator
-from contextlib import closing
-from dataclasses import dataclass
-from functools import partial
+from collections.abc import Callable, Iterator
+from contextlib import closing, nullcontext
 from pathlib import Path
 
-import numpy as np
 from tqdm import tqdm
 
 from vistac.dataset import MANIFEST, files
 from vistac.dataset.schema import IMAGES, MASK_VALUES, MASKS, PARTIAL
-from vistac.engine import EngineCfg, preflight
+from vistac.engine import EngineCfg, ForkServer, LocalRunner, PoolRunner, preflight
 from vistac.folder_lock import hold
 from vistac_sim.effects import build_pipeline
-from vistac_sim.generate import shards
+from vistac_sim.generate import WORKER_MODULES, shards
+from vistac_sim.generate.chunks import ChunkWork
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.objects_report import screen_objects
-from vistac_sim.generate.processes import (
-    in_new_worker,
-    in_worker,
-    stop_fork_server,
-    worker_pool,
-)
+from vistac_sim.generate.plan import VERSIONED, Chunk, plan_chunks, plan_tasks
+from vistac_sim.generate.screening import screen_object
 from vistac_sim.generate.verify import check_complete
-from vistac_sim.objects.specs import ObjectSpec, object_index, procedural_library
-
-VERSIONED = ("mujoco", "numpy", "trimesh")  # what decides the bytes of a dataset
-
-
-@dataclass(frozen=True)
-class Chunk:
-    """One unit of work: configuration ids that all use object `object_index`."""
-
-    index: int
-    object_index: int
-    config_ids: tuple[int, ...]
-
-
-def plan_chunks(n: int, seed: int, n_objects: int, chunk_size: int) -> list[Chunk]:
-    """Group configuration ids by object, then cut each group into chunks of `chunk_size`."""
-    objs = np.array([object_index(seed, i, n_objects) for i in range(n)], dtype=int)
-    chunks = []
-    for k in range(n_objects):
-        ids = np.flatnonzero(objs == k)
-        for start in range(0, len(ids), chunk_size):
-            part = tuple(int(i) for i in ids[start:start + chunk_size])
-            chunks.append(Chunk(len(chunks), k, part))
-    return chunks
-
-
-def plan_tasks(todo: list[Chunk], workers: int, per_worker: int = 8) -> list[list[Chunk]]:
-    """Group consecutive chunks of one object into tasks of at most ~1/(workers * per_worker)
-    of the work, so that a worker builds an object's scene once and the last tasks stay short."""
-    limit = max(1, -(-sum(len(c.config_ids) for c in todo) // (workers * per_worker)))
-    tasks: list[list[Chunk]] = []
-    size = 0
-    for c in todo:
-        if tasks and tasks[-1][-1].object_index == c.object_index and size < limit:
-            tasks[-1].append(c)
-            size += len(c.config_ids)
-        else:
-            tasks.append([c])
-            size = len(c.config_ids)
-    return tasks
+from vistac_sim.objects.specs import ObjectSpec, procedural_library
 
 
 def object_specs(cfg: GenerateCfg, seed: int) -> tuple[list[ObjectSpec], list[dict]]:
@@ -91,51 +45,48 @@ def object_specs(cfg: GenerateCfg, seed: int) -> tuple[list[ObjectSpec], list[di
     return procedural_library(cfg.objects, seed), []
 
 
-def _screen(specs: list[ObjectSpec], cfg: GenerateCfg, workers: int, progress: bool):
+def _screen(specs: list[ObjectSpec], cfg: GenerateCfg, workers: int, progress: bool,
+            server: ForkServer | None):
     """Screen the objects in worker processes (this process imports no simulator); returns
     `screen_objects`' result and the versions of what the workers run (for the manifest)."""
     jobs = [(k, spec, cfg) for k, spec in enumerate(specs)]
-    with worker_pool(min(workers, len(specs))) as pool:
-        outcomes = (pool.imap if pool else map)(in_worker("screen_object"), jobs)
+    if server is None or workers == 1:
+        screened = screen_objects(specs, cfg, map(screen_object, jobs), progress)
+        return (*screened, files.versions(*VERSIONED))
+    runner = PoolRunner(server, screen_object, min(workers, len(specs)))
+    with closing(runner.ordered(jobs)) as outcomes:
         screened = screen_objects(specs, cfg, outcomes, progress)
-        versions = pool.apply(files.versions, VERSIONED) if pool else files.versions(*VERSIONED)
-    return (*screened, versions)
+    return (*screened, server.call(files.versions, *VERSIONED))
 
 
 def _chunk_runner(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[Chunk],
-                  workers: int, engine: EngineCfg) -> tuple[Generator[int], Callable[..., dict]]:
-    """Where the `todo` chunks run (Ray tasks, this process, or a pool of worker processes) and
-    the final merge after them (`shards.finalize`).
+                  workers: int, engine: EngineCfg,
+                  server: ForkServer | None) -> tuple[Iterator[int], Callable[..., dict]]:
+    """Where the `todo` chunks run (Ray tasks, this process, or workers forked from `server`)
+    and the final merge after them (`shards.finalize`).
 
-    Returns a generator of the number of configurations committed, as chunks (or a pool's
-    tasks) commit (its workers stop when it is exhausted or closed), and the merge: after a
-    pool, it runs in a new worker forked from the fork server, which imported pyarrow and pandas
-    already (this process has not) and ends with the merge; otherwise in this process.
+    Returns a generator of the number of configurations committed, as chunks (or tasks of
+    chunks) commit (its workers stop when it is exhausted or closed), and the merge: after
+    forked workers, it runs in one more worker (the server imported pyarrow and pandas already,
+    this process has not); otherwise in this process.
     """
     if engine.engine == "ray":
         from vistac_sim.generate.on_ray import run_chunks_on_ray
 
         return run_chunks_on_ray(cfg, specs, out, todo, engine, num_cpus=workers), shards.finalize
-    if workers == 1 or len(todo) <= 1:
-        return _run_here(cfg, specs, out, todo), shards.finalize
-    return _run_in_pool(cfg, specs, out, todo, workers), partial(in_new_worker, shards.finalize)
+    work = ChunkWork(cfg, specs, out)
+    if server is None or workers == 1 or len(todo) <= 1:
+        return _counts(LocalRunner(work).run([c] for c in todo)), shards.finalize
+    runs = PoolRunner(server, work, workers).run(plan_tasks(todo, workers))
+    return _counts(runs), lambda *args: server.call(shards.finalize, *args)
 
 
-def _run_here(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path,
-              todo: list[Chunk]) -> Generator[int]:
-    from vistac_sim.generate import worker
-
-    worker.init_worker(cfg, specs, str(out))
-    try:
-        yield from (worker.run_chunk(c) for c in todo)
-    finally:
-        worker.close_worker()
-
-
-def _run_in_pool(cfg: GenerateCfg, specs: list[ObjectSpec], out: Path, todo: list[Chunk],
-                 workers: int) -> Generator[int]:
-    with worker_pool(workers, cfg, specs, str(out)) as pool:
-        yield from pool.imap_unordered(in_worker("run_task"), plan_tasks(todo, workers))
+def _counts(runs: Iterator[tuple[int, int]]) -> Iterator[int]:
+    """The configurations committed, from a runner's (position, count); closing this closes
+    the runner's batch (its workers stop)."""
+    with closing(runs):
+        for _, count in runs:
+            yield count
 
 
 def drop_unstarted_run(out: Path, existed: bool) -> None:
@@ -150,7 +101,8 @@ def drop_unstarted_run(out: Path, existed: bool) -> None:
 
 # --------------------------------------------------------------------------------- the run
 def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool = False,
-             progress: bool = True, engine: EngineCfg | None = None) -> dict:
+             progress: bool = True, engine: EngineCfg | None = None,
+             server: ForkServer | None = None) -> dict:
     """Generate (or resume) a dataset of `cfg.n` configurations in `out`; returns the manifest.
 
     From a script, call it under ``if __name__ == "__main__":``: the workers' fork server
@@ -166,6 +118,9 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
             its manifest with ``"already_complete": true`` (not written), doing nothing else.
         progress: show a progress bar with rate and ETA.
         engine: local processes (default) or Ray tasks (`vistac_sim.generate.on_ray`).
+        server: the fork server of the workers, started already (it imports `WORKER_MODULES`
+            while this process goes on); default: one of the run's own, unless `workers` is 1.
+            Whoever starts a server stops it.
 
     Raises:
         UserError: bad options, bad meshes or objects without a valid grasp (strict), no
@@ -173,27 +128,27 @@ def generate(cfg: GenerateCfg, out: str | Path, workers: int = 0, resume: bool =
             (resume) damaged state in it.
     """
     out = Path(out)
-    try:
+    engine = engine or EngineCfg()
+    own = server is None and workers != 1  # Ray runs the chunks, the server screens
+    with ForkServer(WORKER_MODULES) if own else nullcontext(server) as forks:
         with hold(out, "generate"):
             existed = out.exists()
             try:
-                return _generate(cfg, out, workers, resume, progress, engine or EngineCfg())
+                return _generate(cfg, out, workers, resume, progress, engine, forks)
             except BaseException:  # inside the lock: never another process's run
                 drop_unstarted_run(out, existed)
                 raise
-    finally:
-        stop_fork_server()
 
 
 def _generate(cfg: GenerateCfg, out: Path, workers: int, resume: bool, progress: bool,
-              engine: EngineCfg) -> dict:
+              engine: EngineCfg, server: ForkServer | None) -> dict:
     t0 = time.perf_counter()
     preflight(engine)
     if resume and (out / MANIFEST).exists():  # finished: checked, then nothing to do
         return {**check_complete(out, cfg.to_dict()), "already_complete": True}
     workers = min(workers or mp.cpu_count(), mp.cpu_count())
     specs, skipped = object_specs(cfg, cfg.seed)
-    specs, unusable, repairs, versions = _screen(specs, cfg, workers, progress)
+    specs, unusable, repairs, versions = _screen(specs, cfg, workers, progress, server)
     run_state = {"config": cfg.to_dict(), "objects": [s.__dict__ for s in specs]}
     done = shards.start_run(out, run_state, resume)
     chunks = plan_chunks(cfg.n, cfg.seed, len(specs), cfg.chunk_size)
@@ -201,7 +156,7 @@ def _generate(cfg: GenerateCfg, out: Path, workers: int, resume: bool, progress:
     workers = max(1, min(workers, len(todo)))  # no idle processes
     bar = tqdm(total=cfg.n, initial=sum(len(c.config_ids) for c in chunks if c.index in done),
                unit="cfg", desc="generate", disable=not progress, smoothing=0.1)
-    committed, merge = _chunk_runner(cfg, specs, out, todo, workers, engine)
+    committed, merge = _chunk_runner(cfg, specs, out, todo, workers, engine, server)
     with closing(committed):  # its workers stop here even if the loop is interrupted
         for count in committed:
             bar.update(count)
