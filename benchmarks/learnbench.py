@@ -43,10 +43,10 @@ def ensure_dataset(path: Path, cfg: GenerateCfg) -> Path:
     return path
 
 
-def headline_data(n: int, seed: int = 0) -> GenerateCfg:
+def headline_data(n: int, seed: int = 0, preset: str = "clean") -> GenerateCfg:
     """The learning benchmarks' dataset: `vistac generate --n N --noise 0.05 --split-by object
-    --seed S`."""
-    return GenerateCfg.from_preset("clean", noise=0.05, n=n, seed=seed,
+    --seed S` (``--preset P`` when not clean)."""
+    return GenerateCfg.from_preset(preset, noise=0.05, n=n, seed=seed,
                                    split=SplitCfg(by="object"))
 
 
