@@ -34,12 +34,24 @@ The photo-trained model (``benchmarks/results/appearance_stress_photo.*``), one 
     python benchmarks/appearance_stress.py --data D --photo-data D_PHOTO \
         --run "default (pinchnet)=R" --run "default + --appearance 0.5=R_APP" \
         --run "default, trained on photo=R_PHOTO" --name appearance_stress_photo
+
+The committed file was made in two parts to save time on the shared machine (the clean-trained
+runs' perturbation rows are in ``appearance_stress_pinchnet.md``): the photo-trained run on
+every image set, then the others on clean and photo images with the first part added:
+
+    python benchmarks/appearance_stress.py --data D --photo-data D_PHOTO \
+        --run "default, trained on photo=R_PHOTO" --no-baselines --name appearance_stress_photo_run
+    python benchmarks/appearance_stress.py --data D --photo-data D_PHOTO \
+        --run "default (pinchnet)=R" --run "default + --appearance 0.5=R_APP" \
+        --images "photo preset" --add benchmarks/results/appearance_stress_photo_run.json \
+        --name appearance_stress_photo
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import sys
 import time
 from collections.abc import Callable
@@ -122,11 +134,13 @@ pinch_predictor = image_baseline(
     lambda img, colours, tables: pinch_image(img, colours, FINGERS, dataset_friction(tables)))
 
 
-def predictors(runs: dict[str, Path]) -> dict[str, Callable[[], Predictor]]:
+def predictors(runs: dict[str, Path], baselines: bool = True
+               ) -> dict[str, Callable[[], Predictor]]:
     """Every predictor to score, by label (factories, built once)."""
     out = {label: (lambda r=run: run_predictor(r)) for label, run in runs.items()}
-    out["geometric baseline"] = geometric_predictor
-    out["pinch baseline"] = pinch_predictor
+    if baselines:
+        out["geometric baseline"] = geometric_predictor
+        out["pinch baseline"] = pinch_predictor
     return out
 
 
@@ -183,7 +197,7 @@ def stress(tables: DatasetTables, rows: np.ndarray, preds: dict[str, Callable[[]
             res[label][name]["fingers_lost"] = int(lost)
         print(f"{name}: {time.perf_counter() - t0:.0f} s", flush=True)
     for per in res.values():
-        for name in names:
+        for name in per:
             for f in FINGERS:
                 per[name][f"{f}_delta"] = per[name][f] - per["clean"][f]
     return res
@@ -195,7 +209,7 @@ def markdown(res: dict, names: tuple[str, ...]) -> str:
             "fingers lost"]
     lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
     for label, per in res.items():
-        for name in names:
+        for name in (n for n in names if n in per):
             m = per[name]
             lines.append("| " + " | ".join([
                 label, name, f"{m['index']:.2f}", f"{m['thumb']:.2f}",
@@ -213,7 +227,8 @@ def plot(res: dict, names: tuple[str, ...], path: Path) -> None:
     x = np.arange(len(axes_names))
     for ax, (label, per) in zip(axs[0], res.items(), strict=True):
         for k, f in enumerate(FINGERS):
-            ax.bar(x + (k - 0.5) * 0.38, [per[n][f"{f}_delta"] for n in axes_names], 0.38,
+            ax.bar(x + (k - 0.5) * 0.38,
+                   [per[n][f"{f}_delta"] if n in per else np.nan for n in axes_names], 0.38,
                    label=f)
         ax.axhline(0, color="k", lw=0.6)
         ax.set_xticks(x, axes_names, rotation=40, ha="right")
@@ -247,6 +262,14 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--limit", type=int, default=0, help="score only the first N test "
                     "configurations (0: all; for a quick look)")
+    ap.add_argument("--images", nargs="+", default=None, metavar="NAME",
+                    help="image sets to score besides clean (default: every perturbation, and "
+                    f"'{PHOTO_PRESET}' with --photo-data)")
+    ap.add_argument("--no-baselines", action="store_true",
+                    help="score the runs only, not the geometric and pinch baselines")
+    ap.add_argument("--add", type=Path, action="append", default=[], metavar="JSON",
+                    help="results (.json) of an earlier invocation on the same test images: "
+                    "its predictors join the table (split a long benchmark into parts)")
     ap.add_argument("--name", default="appearance_stress")
     a = ap.parse_args()
     data = a.data or ensure_dataset(a.out / "data" / "d1000", headline_data(1000, seed=21))
@@ -278,10 +301,25 @@ def main() -> None:
     if a.limit:
         rows = rows[:a.limit]
     photo = photo_twin(tables, photo_data) if photo_data is not None else None
-    names = ("clean", *PERTURBATIONS, *((PHOTO_PRESET,) if photo is not None else ()))
+    every = ("clean", *PERTURBATIONS, *((PHOTO_PRESET,) if photo is not None else ()))
+    unknown = sorted(set(a.images or ()) - set(every))
+    if unknown:
+        raise UserError(f"--images: unknown {', '.join(unknown)}; choose from "
+                        f"{', '.join(every)}")
+    names = every if a.images is None else ("clean", *(n for n in every[1:] if n in a.images))
     t0 = time.perf_counter()
-    res = stress(tables, rows, predictors(runs), names, a.seed, photo)
+    res = stress(tables, rows, predictors(runs, not a.no_baselines), names, a.seed, photo)
     cfgs = {label: dataclasses.asdict(load_run(run)[0]) for label, run in runs.items()}
+    for path in a.add:
+        earlier = json.loads(path.read_text())
+        if (earlier["data"], earlier["n_test_configs"], earlier["seed"]) != (
+                str(data), int(len(rows)), a.seed):
+            raise UserError(f"--add {path}: scored on other images (data, test rows or seed)")
+        res.update(earlier["results"])
+        cfgs.update(earlier["run_configs"])
+        runs.update({k: Path(v) for k, v in earlier["runs"].items()})
+    res = dict(sorted(res.items(), key=lambda kv: kv[0] not in cfgs))  # runs, then baselines
+    names = tuple(n for n in every if any(n in per for per in res.values()))
     result = {"data": str(data), "photo_data": str(photo_data) if photo_data else None,
               "n_test_configs": int(len(rows)), "seed": a.seed,
               "runs": {k: str(v) for k, v in runs.items()}, "run_configs": cfgs,

@@ -14,7 +14,7 @@ The two datasets (made here unless they exist; generation resumes):
 
 Then ``vistac experiment sim2real --sim SIM --real REAL --fractions F.. --seeds S --epochs E
 --out OUT/s2r`` (through the Python API; a killed run continues where it stopped when the same
-command runs again). Writes ``sim2real_photo.md`` / ``.json`` into ``--results``: the
+command runs again). Writes ``sim2real_photo.md`` / ``.json`` / ``.png`` into ``--results``: the
 experiment's table, the zero-shot gap (the sim-only model on the sim test split and on the real
 test split), the gain of fine-tuning over training from scratch per fraction, the commands,
 wall and CPU time and the machine.
@@ -30,6 +30,7 @@ import argparse
 import dataclasses
 import json
 import resource
+import shutil
 import sys
 import time
 from pathlib import Path
@@ -167,6 +168,7 @@ def main() -> None:
           "only its own part).\n\n" + "\n\n".join(lines) + "\n\n"
           + report.split("\n", 1)[1].replace("![sim2real](sim2real.png)", "").strip())
     save(a.results, a.name, result, md)
+    shutil.copyfile(a.out / "s2r" / "sim2real.png", a.results / f"{a.name}.png")
 
 
 if __name__ == "__main__":
