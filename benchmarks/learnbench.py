@@ -76,7 +76,8 @@ def run_entry(data: Path, out: Path, label: str, protocol: str = "default",
     if scored.exists() and scored.stat().st_mtime > best.stat().st_mtime:
         res = json.loads(scored.read_text())
     else:
-        res = evaluate_run(run, split="test", make_plots=False, device="cpu")
+        res = evaluate_run(run, split="test", make_plots=False, device="cpu",
+                           max_missing_pct=cfg.max_missing_pct)
     rows = _epoch_rows(run)
     meta = json.loads((run / "config.json").read_text())
     return {"label": label, "kind": "model", "protocol": protocol, "model": cfg.model,
