@@ -8,9 +8,15 @@ unchanged labels: median angle to the cone mean per finger, its degradation over
 images, and how many fingers the locator lost. Predictors are listed in `PREDICTORS` (a name
 and a factory), so adding one (e.g. the pinch baseline) is one line.
 
-Runs: ``--run LABEL=FOLDER`` (repeatable) scores existing runs; without it, two small default-
-recipe runs are trained into ``--out`` on the dataset, identical but for train-time appearance
-augmentation (``--appearance 0`` and ``--appearance A``), with ``--epochs`` epochs.
+``--photo-data P``: the same configurations rendered with ``--preset photo`` (same seed and
+settings, hence identical labels; checked); adds the images row ``photo preset`` (P's test
+images, scored against the same labels).
+
+Runs: ``--run LABEL=FOLDER`` (repeatable) scores existing runs; without it, small default-recipe
+runs are trained into ``--out`` with ``--epochs`` epochs: on the dataset with and without
+train-time appearance augmentation (``--appearance A`` and ``0``) and, given ``--photo-data``,
+one on the photo dataset. Without ``--data``, 1000 configurations are made in ``--out`` (and,
+with ``--photo``, their photo twin).
 
 Writes ``appearance_stress.md`` / ``.json`` and ``appearance_stress.png`` (degradation per axis
 and finger, one panel per predictor) into ``--results``.
@@ -18,12 +24,35 @@ and finger, one panel per predictor) into ``--results``.
 Usage:
     python benchmarks/appearance_stress.py --out bench/stress --results benchmarks/results
     python benchmarks/appearance_stress.py --data D --run clean=runs/r1 --run aug=runs/r2
+    python benchmarks/appearance_stress.py --out bench/stress_photo --photo   # all made here
+
+The photo-trained model (``benchmarks/results/appearance_stress_photo.*``), one command; D is
+``vistac generate --n 3000 --noise 0.05 --seed 21 --split-by object``, D_PHOTO the same with
+``--preset photo``, the runs ``vistac train --data D|D|D_PHOTO --out R --finger both``
+(R_APP with ``--appearance 0.5``; R_PHOTO with ``--max-missing-pct 10``: the locator loses
+3.5 % of the photo training fingertips, above the default limit of 1 %):
+
+    python benchmarks/appearance_stress.py --data D --photo-data D_PHOTO \
+        --run "default (pinchnet)=R" --run "default + --appearance 0.5=R_APP" \
+        --run "default, trained on photo=R_PHOTO" --name appearance_stress_photo
+
+The committed file was made in two parts to save time on the shared machine (the clean-trained
+runs' perturbation rows are in ``appearance_stress_pinchnet.md``): the photo-trained run on
+every image set, then the others on clean and photo images with the first part added:
+
+    python benchmarks/appearance_stress.py --data D --photo-data D_PHOTO \
+        --run "default, trained on photo=R_PHOTO" --no-baselines --name appearance_stress_photo_run
+    python benchmarks/appearance_stress.py --data D --photo-data D_PHOTO \
+        --run "default (pinchnet)=R" --run "default + --appearance 0.5=R_APP" \
+        --images "photo preset" --add benchmarks/results/appearance_stress_photo_run.json \
+        --name appearance_stress_photo
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+import json
 import sys
 import time
 from collections.abc import Callable
@@ -36,13 +65,14 @@ import matplotlib  # noqa: E402
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from learnbench import ensure_dataset, machine, run_entry, save, slug  # noqa: E402
+from learnbench import ensure_dataset, headline_data, machine, run_entry, save, slug  # noqa: E402
 
 from vistac.dataset import FINGERS, DatasetTables, open_dataset  # noqa: E402
 from vistac.errors import UserError  # noqa: E402
 from vistac_learn.data.fingertips import located_in  # noqa: E402
 from vistac_learn.data.perturb import PERTURBATIONS, Scene, perturb, segment  # noqa: E402
 from vistac_learn.data.samples import SampleSet  # noqa: E402
+from vistac_learn.data.tip_coverage import MAX_MISSING_PCT  # noqa: E402
 from vistac_learn.data.variants import read_rgb  # noqa: E402
 from vistac_learn.evaluate.geometric import GeometricCfg, predict_image  # noqa: E402
 from vistac_learn.evaluate.pinch import dataset_friction  # noqa: E402
@@ -106,17 +136,41 @@ pinch_predictor = image_baseline(
     lambda img, colours, tables: pinch_image(img, colours, FINGERS, dataset_friction(tables)))
 
 
-def predictors(runs: dict[str, Path]) -> dict[str, Callable[[], Predictor]]:
+def predictors(runs: dict[str, Path], baselines: bool = True
+               ) -> dict[str, Callable[[], Predictor]]:
     """Every predictor to score, by label (factories, built once)."""
     out = {label: (lambda r=run: run_predictor(r)) for label, run in runs.items()}
-    out["geometric baseline"] = geometric_predictor
-    out["pinch baseline"] = pinch_predictor
+    if baselines:
+        out["geometric baseline"] = geometric_predictor
+        out["pinch baseline"] = pinch_predictor
     return out
 
 
-def perturbed_images(tables: DatasetTables, rows: np.ndarray, name: str, seed: int
-                     ) -> list[np.ndarray]:
-    """The test images under one perturbation (``clean``: as rendered)."""
+PHOTO_PRESET = "photo preset"  # the images row of the photo-rendered twin dataset
+
+
+def photo_twin(tables: DatasetTables, photo: Path) -> DatasetTables:
+    """The dataset `photo` if it holds the configurations and labels of `tables`.
+
+    Raises:
+        UserError: other configurations or other labels.
+    """
+    twin = open_dataset(photo)
+    same = (len(twin.configs) == len(tables.configs)
+            and twin.presses.equals(tables.presses)
+            and all(np.array_equal(twin.rows(s), tables.rows(s)) for s in ("train", "test")))
+    if not same:
+        raise UserError(f"--photo-data {photo}: not the same configurations and labels as "
+                        f"--data {tables.root} (make it with the same command and --preset photo)")
+    return twin
+
+
+def perturbed_images(tables: DatasetTables, rows: np.ndarray, name: str, seed: int,
+                     photo: DatasetTables | None = None) -> list[np.ndarray]:
+    """The test images under one perturbation (``clean``: as rendered; ``photo preset``:
+    `photo`'s images of the same rows)."""
+    if name == PHOTO_PRESET:
+        return [read_rgb(photo.image_path(int(row))) for row in rows]
     colours = {f: tables.finger_rgb(f) for f in FINGERS}
     k = (("clean", *PERTURBATIONS)).index(name)
     out = []
@@ -130,14 +184,14 @@ def perturbed_images(tables: DatasetTables, rows: np.ndarray, name: str, seed: i
 
 
 def stress(tables: DatasetTables, rows: np.ndarray, preds: dict[str, Callable[[], Predictor]],
-           names: tuple[str, ...], seed: int) -> dict:
+           names: tuple[str, ...], seed: int, photo: DatasetTables | None = None) -> dict:
     """Median angle to the cone mean per predictor, perturbation and finger."""
     built = {label: make() for label, make in preds.items()}
     res = {label: {} for label in built}
     item_row = np.asarray(rows)
     for name in names:
         t0 = time.perf_counter()
-        images = perturbed_images(tables, rows, name, seed)
+        images = perturbed_images(tables, rows, name, seed, photo)
         for label, fn in built.items():
             pred, lost = fn(tables, rows, images)
             sc = score(pred, tables, rows, item_row, FINGERS)
@@ -145,7 +199,7 @@ def stress(tables: DatasetTables, rows: np.ndarray, preds: dict[str, Callable[[]
             res[label][name]["fingers_lost"] = int(lost)
         print(f"{name}: {time.perf_counter() - t0:.0f} s", flush=True)
     for per in res.values():
-        for name in names:
+        for name in per:
             for f in FINGERS:
                 per[name][f"{f}_delta"] = per[name][f] - per["clean"][f]
     return res
@@ -157,7 +211,7 @@ def markdown(res: dict, names: tuple[str, ...]) -> str:
             "fingers lost"]
     lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
     for label, per in res.items():
-        for name in names:
+        for name in (n for n in names if n in per):
             m = per[name]
             lines.append("| " + " | ".join([
                 label, name, f"{m['index']:.2f}", f"{m['thumb']:.2f}",
@@ -175,7 +229,8 @@ def plot(res: dict, names: tuple[str, ...], path: Path) -> None:
     x = np.arange(len(axes_names))
     for ax, (label, per) in zip(axs[0], res.items(), strict=True):
         for k, f in enumerate(FINGERS):
-            ax.bar(x + (k - 0.5) * 0.38, [per[n][f"{f}_delta"] for n in axes_names], 0.38,
+            ax.bar(x + (k - 0.5) * 0.38,
+                   [per[n][f"{f}_delta"] if n in per else np.nan for n in axes_names], 0.38,
                    label=f)
         ax.axhline(0, color="k", lw=0.6)
         ax.set_xticks(x, axes_names, rotation=40, ha="right")
@@ -196,6 +251,11 @@ def main() -> None:
     ap.add_argument("--results", type=Path, default=Path("benchmarks/results"))
     ap.add_argument("--data", type=Path, default=None,
                     help="dataset (default: 1000 configurations made in --out)")
+    ap.add_argument("--photo-data", type=Path, default=None,
+                    help="the dataset's configurations rendered with --preset photo: adds the "
+                    "'photo preset' images row (and, without --run, a run trained on it)")
+    ap.add_argument("--photo", action="store_true",
+                    help="without --data: also make the photo twin of the dataset made here")
     ap.add_argument("--run", action="append", default=[], metavar="LABEL=FOLDER",
                     help="a trained run to score (repeatable); default: train two")
     ap.add_argument("--epochs", type=int, default=8, help="epochs of the runs trained here")
@@ -204,10 +264,21 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--limit", type=int, default=0, help="score only the first N test "
                     "configurations (0: all; for a quick look)")
+    ap.add_argument("--images", nargs="+", default=None, metavar="NAME",
+                    help="image sets to score besides clean (default: every perturbation, and "
+                    f"'{PHOTO_PRESET}' with --photo-data)")
+    ap.add_argument("--no-baselines", action="store_true",
+                    help="score the runs only, not the geometric and pinch baselines")
+    ap.add_argument("--add", type=Path, action="append", default=[], metavar="JSON",
+                    help="results (.json) of an earlier invocation on the same test images: "
+                    "its predictors join the table (split a long benchmark into parts)")
     ap.add_argument("--name", default="appearance_stress")
     a = ap.parse_args()
-    data = a.data or ensure_dataset(a.out / "data" / "d1000", "--n", "1000", "--noise", "0.05",
-                                    "--seed", "21", "--split-by", "object")
+    data = a.data or ensure_dataset(a.out / "data" / "d1000", headline_data(1000, seed=21))
+    photo_data = a.photo_data
+    if photo_data is None and a.photo and a.data is None:
+        photo_data = ensure_dataset(a.out / "data" / "d1000-photo",
+                                    headline_data(1000, seed=21, preset="photo"))
     runs = {}
     for spec in a.run:
         label, _, folder = spec.partition("=")
@@ -216,31 +287,56 @@ def main() -> None:
         runs[label] = Path(folder)
     train_s = {}
     if not runs:
-        for label, app in ((f"default, {a.epochs} epochs", 0.0),
-                           (f"default + appearance {a.appearance:g}, {a.epochs} epochs",
-                            a.appearance)):
+        todo = [(f"default, {a.epochs} epochs", data, 0.0),
+                (f"default + appearance {a.appearance:g}, {a.epochs} epochs", data,
+                 a.appearance)]
+        if photo_data is not None:
+            todo.append((f"default, trained on photo, {a.epochs} epochs", photo_data, 0.0))
+        for label, on, app in todo:
             t0 = time.perf_counter()
-            run_entry(data, a.out, label, "default", False, finger="both", epochs=a.epochs,
-                      appearance=app)
+            # photographs: the locator loses a few % of the fingertips (default limit 1 %)
+            run_entry(on, a.out, label, "default", False, finger="both", epochs=a.epochs,
+                      appearance=app, max_missing_pct=10.0 if on == photo_data else MAX_MISSING_PCT)
             runs[label] = a.out / "runs" / slug(label)
             train_s[label] = time.perf_counter() - t0
     tables = open_dataset(data)
     rows = tables.rows("test")
     if a.limit:
         rows = rows[:a.limit]
-    names = ("clean", *PERTURBATIONS)
+    photo = photo_twin(tables, photo_data) if photo_data is not None else None
+    every = ("clean", *PERTURBATIONS, *((PHOTO_PRESET,) if photo is not None else ()))
+    unknown = sorted(set(a.images or ()) - set(every))
+    if unknown:
+        raise UserError(f"--images: unknown {', '.join(unknown)}; choose from "
+                        f"{', '.join(every)}")
+    names = every if a.images is None else ("clean", *(n for n in every[1:] if n in a.images))
     t0 = time.perf_counter()
-    res = stress(tables, rows, predictors(runs), names, a.seed)
+    res = stress(tables, rows, predictors(runs, not a.no_baselines), names, a.seed, photo)
     cfgs = {label: dataclasses.asdict(load_run(run)[0]) for label, run in runs.items()}
-    result = {"data": str(data), "n_test_configs": int(len(rows)), "seed": a.seed,
+    for path in a.add:
+        earlier = json.loads(path.read_text())
+        if (earlier["data"], earlier["n_test_configs"], earlier["seed"]) != (
+                str(data), int(len(rows)), a.seed):
+            raise UserError(f"--add {path}: scored on other images (data, test rows or seed)")
+        res.update(earlier["results"])
+        cfgs.update(earlier["run_configs"])
+        runs.update({k: Path(v) for k, v in earlier["runs"].items()})
+    res = dict(sorted(res.items(), key=lambda kv: kv[0] not in cfgs))  # runs, then baselines
+    names = tuple(n for n in every if any(n in per for per in res.values()))
+    result = {"data": str(data), "photo_data": str(photo_data) if photo_data else None,
+              "n_test_configs": int(len(rows)), "seed": a.seed,
               "runs": {k: str(v) for k, v in runs.items()}, "run_configs": cfgs,
               "train_wall_s": train_s, "stress_wall_s": time.perf_counter() - t0,
               "machine": machine(), "results": res}
     md = (f"Appearance stress on the test split of {data} ({len(rows)} configurations of "
           "held-out objects); median angle to the cone mean (deg) and its change over clean "
           f"images; perturbations drawn from seed {a.seed}. Runs: "
-          + "; ".join(f"{k}: {cfgs[k]['epochs']} epochs, appearance {cfgs[k]['appearance']}"
-                      for k in runs) + ".\n\n" + markdown(res, names))
+          + "; ".join(f"{k}: trained on {cfgs[k]['data']}, {cfgs[k]['epochs']} epochs, "
+                      f"appearance {cfgs[k]['appearance']}"
+                      for k in runs) + "."
+          + (f" Row `{PHOTO_PRESET}`: the same test configurations rendered with "
+             f"`--preset photo` ({photo_data})." if photo is not None else "")
+          + "\n\n" + markdown(res, names))
     a.results.mkdir(parents=True, exist_ok=True)
     plot(res, names, a.results / f"{a.name}.png")
     save(a.results, a.name, result, md)

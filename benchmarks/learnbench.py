@@ -43,10 +43,10 @@ def ensure_dataset(path: Path, cfg: GenerateCfg) -> Path:
     return path
 
 
-def headline_data(n: int, seed: int = 0) -> GenerateCfg:
+def headline_data(n: int, seed: int = 0, preset: str = "clean") -> GenerateCfg:
     """The learning benchmarks' dataset: `vistac generate --n N --noise 0.05 --split-by object
-    --seed S`."""
-    return GenerateCfg.from_preset("clean", noise=0.05, n=n, seed=seed,
+    --seed S` (``--preset P`` when not clean)."""
+    return GenerateCfg.from_preset(preset, noise=0.05, n=n, seed=seed,
                                    split=SplitCfg(by="object"))
 
 
@@ -76,7 +76,8 @@ def run_entry(data: Path, out: Path, label: str, protocol: str = "default",
     if scored.exists() and scored.stat().st_mtime > best.stat().st_mtime:
         res = json.loads(scored.read_text())
     else:
-        res = evaluate_run(run, split="test", make_plots=False, device="cpu")
+        res = evaluate_run(run, split="test", make_plots=False, device="cpu",
+                           max_missing_pct=cfg.max_missing_pct)
     rows = _epoch_rows(run)
     meta = json.loads((run / "config.json").read_text())
     return {"label": label, "kind": "model", "protocol": protocol, "model": cfg.model,

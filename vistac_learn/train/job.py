@@ -108,7 +108,8 @@ def run_job(cfg: JobCfg) -> JobResult:
     scores = {}
     for s in cfg.scores:
         res = evaluate_run(out, data=s.data, split=s.split, out=out / "eval" / s.name,
-                           make_plots=False, cross_dataset=s.data is not None)
+                           make_plots=False, cross_dataset=s.data is not None,
+                           max_missing_pct=cfg.train.max_missing_pct)
         scores[s.name] = res["metrics"]
     return JobResult(str(out), float(objective), int(best), len(rows),
                      float(rows[0]["train_loss"]),
