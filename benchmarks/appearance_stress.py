@@ -36,7 +36,14 @@ import matplotlib  # noqa: E402
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from learnbench import ensure_dataset, machine, run_entry, save, slug  # noqa: E402
+from learnbench import (  # noqa: E402
+    ensure_dataset,
+    headline_data,
+    machine,
+    run_entry,
+    save,
+    slug,
+)
 
 from vistac.dataset import FINGERS, DatasetTables, open_dataset  # noqa: E402
 from vistac.errors import UserError  # noqa: E402
@@ -45,7 +52,7 @@ from vistac_learn.data.perturb import PERTURBATIONS, Scene, perturb, segment  # 
 from vistac_learn.data.samples import SampleSet  # noqa: E402
 from vistac_learn.data.variants import read_rgb  # noqa: E402
 from vistac_learn.evaluate.geometric import GeometricCfg, predict_image  # noqa: E402
-from vistac_learn.evaluate.pinch import dataset_friction  # noqa: E402
+from vistac_learn.evaluate.pinch import PinchCfg, dataset_friction  # noqa: E402
 from vistac_learn.evaluate.pinch import predict_image as pinch_image  # noqa: E402
 from vistac_learn.evaluate.run import load_model, load_run  # noqa: E402
 from vistac_learn.metrics.scoring import predict, score  # noqa: E402
@@ -104,6 +111,10 @@ geometric_predictor = image_baseline(
     lambda img, colours, tables: predict_image(img, colours, FINGERS, GeometricCfg()))
 pinch_predictor = image_baseline(
     lambda img, colours, tables: pinch_image(img, colours, FINGERS, dataset_friction(tables)))
+# the same, reading the image through the learned segmenter (flat colours) first
+segmented_pinch_predictor = image_baseline(
+    lambda img, colours, tables: pinch_image(img, colours, FINGERS, dataset_friction(tables),
+                                             PinchCfg(segmented=True)))
 
 
 def predictors(runs: dict[str, Path]) -> dict[str, Callable[[], Predictor]]:
@@ -111,6 +122,7 @@ def predictors(runs: dict[str, Path]) -> dict[str, Callable[[], Predictor]]:
     out = {label: (lambda r=run: run_predictor(r)) for label, run in runs.items()}
     out["geometric baseline"] = geometric_predictor
     out["pinch baseline"] = pinch_predictor
+    out["pinch baseline, segmented"] = segmented_pinch_predictor
     return out
 
 
@@ -205,9 +217,10 @@ def main() -> None:
     ap.add_argument("--limit", type=int, default=0, help="score only the first N test "
                     "configurations (0: all; for a quick look)")
     ap.add_argument("--name", default="appearance_stress")
+    ap.add_argument("--baselines-only", action="store_true", help="score the image-only "
+                    "baselines alone (no run trained or scored)")
     a = ap.parse_args()
-    data = a.data or ensure_dataset(a.out / "data" / "d1000", "--n", "1000", "--noise", "0.05",
-                                    "--seed", "21", "--split-by", "object")
+    data = a.data or ensure_dataset(a.out / "data" / "d1000", headline_data(1000, 21))
     runs = {}
     for spec in a.run:
         label, _, folder = spec.partition("=")
@@ -215,7 +228,7 @@ def main() -> None:
             raise SystemExit(f"--run {spec!r}: expected LABEL=FOLDER")
         runs[label] = Path(folder)
     train_s = {}
-    if not runs:
+    if not runs and not a.baselines_only:
         for label, app in ((f"default, {a.epochs} epochs", 0.0),
                            (f"default + appearance {a.appearance:g}, {a.epochs} epochs",
                             a.appearance)):
