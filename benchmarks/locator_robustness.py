@@ -1,19 +1,23 @@
-"""The fingertip locator on clean and perturbed images, against the simulator's truth.
+"""The fingertip locator on clean, perturbed and photo-preset images, against the simulator's truth.
 
 For each image of a generated dataset and each perturbation (`vistac_learn.data.perturb`: one
-axis at a time and all at once, drawn from (seed, row, perturbation)), the locator runs on the
-perturbed image and its tip centre and finger axis are compared with the simulator's (the
-``tip_*`` / ``approach_*`` columns of ``configs.parquet``, moved by the perturbation's
-homography). Reported per perturbation and finger: found %, tip error (median, 99th
-percentile, max, px), axis error (median, 99th percentile, max, deg), % within the agreed
-tolerance (found, tip < 2 px, axis < 3 deg), milliseconds per image, and the failure reasons.
+axis at a time and all at once, drawn from (seed, row, perturbation)), and for the images of a
+``--preset photo`` dataset (case ``photo``; its truth projected by its perspective camera), the
+colour fit and the learned fit (`vistac_learn.data.fingertips`) run once on the image, and four
+locators made from them are compared side by side (`MODES`: colour alone, learned alone, and
+the `LocatorCfg.segmenter` combinations ``fallback`` and ``check``). Their tip centre and finger
+axis are compared with the simulator's (the ``tip_*`` / ``approach_*`` columns of
+``configs.parquet``, moved by the perturbation's homography). Reported per case, locator and
+finger: found %, % within the agreed tolerance (found, tip < 2 px, axis < 3 deg); per case and
+locator: tip error (median, 99th percentile, max, px), axis error (same, deg), CPU ms per
+image, and the failure reasons.
 
 Writes ``locator_robustness.md`` / ``.json`` into ``--out``.
 
 Usage:
-    python benchmarks/locator_robustness.py --out benchmarks/results --n 300
-    (the dataset: `vistac generate --n 1000 --noise 0.05 --seed 21 --split-by object`, made
-    under <out>/data if --data is not given)
+    python benchmarks/locator_robustness.py --out benchmarks/results --n 200
+    (the datasets: `vistac generate --n 1000 --noise 0.05 --seed 21 --split-by object` and the
+    same with `--n 300 --preset photo`, made under <out>/data unless --data / --photo are given)
 """
 
 from __future__ import annotations
