@@ -33,8 +33,8 @@ analysis (a table photograph of the overlay's hue, a restyled overlay under a wh
 shift), so a learned per-pixel segmenter (`vistac_learn.data.segmenter`) gives a second opinion:
 its labels drawn in a clean render's flat colours go through the same colour fit
 (`learned_fingertips`). `LocatorCfg.segmenter` says how the two combine (`combine`): by default
-(``check``) both run and the colour fit is kept where the two agree, the learned one where they
-disagree or only it finds the finger.
+(``fallback``) the learned fit stands in for a finger the colour fit does not find; ``check``
+runs both and takes the learned fit where they disagree.
 
 Measured (`benchmarks/locator_robustness.py`, docs/appearance.md "Locating fingertips in
 photographs"): clean, each perturbation, all at once and `photo`-preset images, colour fit vs
@@ -100,9 +100,9 @@ class LocatorCfg(Config):
     object_tol: float = param(30.0, gt=0, help="RGB distance (0-255) from the table colour "
                               "above which a pixel is object")
     segmenter: Literal["off", "fallback", "check", "always"] = param(
-        "check", help="the learned segmenter (vistac_learn.data.segmenter) as the front end: "
-        "off; fallback (only for a finger the colour analysis misses); check (both run, the "
-        "learned fit wins where they disagree); always (the learned fit only)")
+        "fallback", help="the learned segmenter (vistac_learn.data.segmenter) as a second "
+        "opinion: off; fallback (only for a finger the colour fit misses); check (both run, "
+        "the learned fit wins where they disagree); always (the learned fit only)")
     agree_px: float = param(3.0, gt=0, help="'check': colour and learned tips closer than "
                             "this (and axes within agree_deg) agree; the colour fit is kept")
     agree_deg: float = param(4.0, gt=0, help="'check': largest axis difference that agrees")
@@ -399,8 +399,7 @@ def combine(colour: dict[str, Fingertip] | None, learned: dict[str, Fingertip],
         if cfg.segmenter == "always" or mine is None:
             out[f] = got
         elif not got.ok:
-            out[f] = mine if mine.ok else Fingertip.missing(f"{mine.reason}; segmenter: "
-                                                            f"{got.reason}")
+            out[f] = mine if mine.ok else Fingertip.missing(f"{mine.reason}; {got.reason}")
         elif not mine.ok:
             out[f] = got
         elif cfg.segmenter == "fallback":
