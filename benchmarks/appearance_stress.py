@@ -75,7 +75,7 @@ from vistac_learn.data.samples import SampleSet  # noqa: E402
 from vistac_learn.data.tip_coverage import MAX_MISSING_PCT  # noqa: E402
 from vistac_learn.data.variants import read_rgb  # noqa: E402
 from vistac_learn.evaluate.geometric import GeometricCfg, predict_image  # noqa: E402
-from vistac_learn.evaluate.pinch import dataset_friction  # noqa: E402
+from vistac_learn.evaluate.pinch import PinchCfg, dataset_friction  # noqa: E402
 from vistac_learn.evaluate.pinch import predict_image as pinch_image  # noqa: E402
 from vistac_learn.evaluate.run import load_model, load_run  # noqa: E402
 from vistac_learn.metrics.scoring import predict, score  # noqa: E402
@@ -134,6 +134,10 @@ geometric_predictor = image_baseline(
     lambda img, colours, tables: predict_image(img, colours, FINGERS, GeometricCfg()))
 pinch_predictor = image_baseline(
     lambda img, colours, tables: pinch_image(img, colours, FINGERS, dataset_friction(tables)))
+# the same, reading the image through the learned segmenter (flat colours) first
+segmented_pinch_predictor = image_baseline(
+    lambda img, colours, tables: pinch_image(img, colours, FINGERS, dataset_friction(tables),
+                                             PinchCfg(segmented=True)))
 
 
 def predictors(runs: dict[str, Path], baselines: bool = True
@@ -143,6 +147,7 @@ def predictors(runs: dict[str, Path], baselines: bool = True
     if baselines:
         out["geometric baseline"] = geometric_predictor
         out["pinch baseline"] = pinch_predictor
+        out["pinch baseline, segmented"] = segmented_pinch_predictor
     return out
 
 
@@ -273,6 +278,8 @@ def main() -> None:
                     help="results (.json) of an earlier invocation on the same test images: "
                     "its predictors join the table (split a long benchmark into parts)")
     ap.add_argument("--name", default="appearance_stress")
+    ap.add_argument("--baselines-only", action="store_true", help="score the image-only "
+                    "baselines alone (no run trained or scored)")
     a = ap.parse_args()
     data = a.data or ensure_dataset(a.out / "data" / "d1000", headline_data(1000, seed=21))
     photo_data = a.photo_data
@@ -286,7 +293,7 @@ def main() -> None:
             raise SystemExit(f"--run {spec!r}: expected LABEL=FOLDER")
         runs[label] = Path(folder)
     train_s = {}
-    if not runs:
+    if not runs and not a.baselines_only:
         todo = [(f"default, {a.epochs} epochs", data, 0.0),
                 (f"default + appearance {a.appearance:g}, {a.epochs} epochs", data,
                  a.appearance)]

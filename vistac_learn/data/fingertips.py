@@ -28,9 +28,17 @@ Steps, all whole-array OpenCV / NumPy:
    the centre of the rounded end's circle, i.e. the simulator's fingertip position. The axis
    points from the back of the finger to the tip.
 
-Measured (`benchmarks/locator_robustness.py`, docs/robustness.md): on clean images every finger
-found, tip centre median 0.73 px, axis median 0.12 deg, all within 2 px / 3 deg; on images
-perturbed toward photographs see the benchmark's table.
+These steps are the *colour fit* (`colour_fingertips`). Photographs can defeat its colour
+analysis (a table photograph of the overlay's hue, a restyled overlay under a white-balance
+shift), so a learned per-pixel segmenter (`vistac_learn.data.segmenter`) gives a second opinion:
+its labels drawn in a clean render's flat colours go through the same colour fit
+(`learned_fingertips`). `LocatorCfg.segmenter` says how the two combine (`combine`): by default
+(``fallback``) the learned fit stands in for a finger the colour fit does not find; ``check``
+runs both and takes the learned fit where they disagree.
+
+Measured (`benchmarks/locator_robustness.py`, docs/appearance.md "Locating fingertips in
+photographs"): clean, each perturbation, all at once and `photo`-preset images, colour fit vs
+learned vs combined.
 """
 
 from __future__ import annotations
@@ -41,6 +49,7 @@ import json
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Literal
 
 import cv2
 import numpy as np
@@ -50,10 +59,11 @@ from tqdm import tqdm
 from vistac.config import Config, param
 from vistac.dataset import FINGERS, DatasetTables
 from vistac.dataset.files import remove_stale_temporaries, write_table
+from vistac.dataset.schema import TABLE_RGB
 from vistac.errors import UserError
 from vistac_learn.data.variants import read_rgb
 
-LOCATOR_VERSION = 2  # bump when the locator's output changes; invalidates cached tables
+LOCATOR_VERSION = 3  # bump when the locator's output changes; invalidates cached tables
 FIELDS = ("tip_u", "tip_v", "axis_u", "axis_v", "radius")
 
 
@@ -89,6 +99,13 @@ class LocatorCfg(Config):
     probe: float = param(1.5, gt=0, help="radius of the look-ahead disc, in finger radii")
     object_tol: float = param(30.0, gt=0, help="RGB distance (0-255) from the table colour "
                               "above which a pixel is object")
+    segmenter: Literal["off", "fallback", "check", "always"] = param(
+        "fallback", help="the learned segmenter (vistac_learn.data.segmenter) as a second "
+        "opinion: off; fallback (only for a finger the colour fit misses); check (both run, "
+        "the learned fit wins where they disagree); always (the learned fit only)")
+    agree_px: float = param(3.0, gt=0, help="'check': colour and learned tips closer than "
+                            "this (and axes within agree_deg) agree; the colour fit is kept")
+    agree_deg: float = param(4.0, gt=0, help="'check': largest axis difference that agrees")
 
 
 @dataclass(frozen=True)
@@ -355,9 +372,62 @@ def locate_finger(mask: np.ndarray, obj: np.ndarray | Callable[[], np.ndarray],
 
 def locate_fingertips(rgb: np.ndarray, colours: dict[str, tuple],
                       cfg: LocatorCfg = LocatorCfg()) -> dict[str, Fingertip]:
-    """Every finger of `colours` located in an (H, W, 3) uint8 RGB image."""
+    """Every finger of `colours` located in an (H, W, 3) uint8 RGB image: by its colour
+    (`colour_fingertips`), by the learned segmenter (`learned_fingertips`), or both, as
+    `LocatorCfg.segmenter` says (`combine`)."""
     if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
         raise UserError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
+    mode = cfg.segmenter
+    colour = colour_fingertips(rgb, colours, cfg) if mode != "always" else None
+    if mode == "off" or (mode == "fallback" and all(t.ok for t in colour.values())):
+        return colour
+    return combine(colour, learned_fingertips(rgb, colours, cfg), cfg)
+
+
+def combine(colour: dict[str, Fingertip] | None, learned: dict[str, Fingertip],
+            cfg: LocatorCfg) -> dict[str, Fingertip]:
+    """Per finger, the colour fit or the learned one as `LocatorCfg.segmenter` says.
+
+    ``fallback``: the colour fit where found, else the learned one. ``check``: the colour fit
+    where both are found and agree (tips within `agree_px`, axes within `agree_deg`), the
+    learned fit where they disagree or only it is found, the colour fit where only it is found.
+    ``always``: the learned fit. A finger found by neither says both reasons.
+    """
+    out = {}
+    for f, got in learned.items():
+        mine = colour[f] if colour is not None else None
+        if cfg.segmenter == "always" or mine is None:
+            out[f] = got
+        elif not got.ok:
+            out[f] = mine if mine.ok else Fingertip.missing(f"{mine.reason}; {got.reason}")
+        elif not mine.ok:
+            out[f] = got
+        elif cfg.segmenter == "fallback":
+            out[f] = mine
+        else:
+            cos = float(np.clip(mine.axis @ got.axis, -1.0, 1.0))
+            agree = np.hypot(*(mine.tip - got.tip)) <= cfg.agree_px and \
+                np.degrees(np.arccos(cos)) <= cfg.agree_deg
+            out[f] = mine if agree else got
+    return out
+
+
+def learned_fingertips(rgb: np.ndarray, colours: dict[str, tuple], cfg: LocatorCfg,
+                       model=None) -> dict[str, Fingertip]:
+    """The fingers located on the learned segmenter's labels (drawn in the flat palette of a
+    clean render, `segmenter.palette_image`) by the colour fit; a failure's reason starts with
+    ``segmenter:``."""
+    from vistac_learn.data.segmenter import palette_image, segment_image
+
+    flat = palette_image(segment_image(rgb, model), colours, TABLE_RGB)
+    found = colour_fingertips(flat, colours, cfg)
+    return {f: t if t.ok else Fingertip.missing(f"segmenter: {t.reason}")
+            for f, t in found.items()}
+
+
+def colour_fingertips(rgb: np.ndarray, colours: dict[str, tuple], cfg: LocatorCfg
+                      ) -> dict[str, Fingertip]:
+    """Every finger located by its drawn colour (steps 1-4 of the module's description)."""
     masks, why = explained_finger_masks(rgb, colours, cfg)
     anyf = np.logical_or.reduce(list(masks.values()))
 
@@ -384,12 +454,18 @@ def simulator_tips(tables: DatasetTables, row: int, size: int
     """The simulator's fingertip centre (pixels) and unit finger axis (image u, v) of each finger
     of a configuration, from ``configs.parquet`` (what the locator is measured against).
 
+    A perspective camera (``camera_fovy_deg`` > 0, the ``photo`` preset) projects the fingertip
+    at the hand's height above the table (`vistac_sim.render.view.View.project`); the clean
+    orthographic view scales the table-plane position.
+
     Args:
         tables: The dataset.
         row: Configuration row.
         size: Side of the (square) image in pixels.
     """
     c = tables.configs.iloc[row]
+    if float(c.get("camera_fovy_deg", 0.0) or 0.0) > 0:
+        return _perspective_tips(tables, c, size)
     ppm = c["px_per_m"]
     out = {}
     for f in FINGERS:
@@ -397,6 +473,28 @@ def simulator_tips(tables: DatasetTables, row: int, size: int
                         -(c[f"tip_{f}_y"] - c["camera_y"]) * ppm + size / 2])
         axis = np.array([c[f"approach_{f}_x"], -c[f"approach_{f}_y"]], float)
         out[f] = (tip, axis / np.linalg.norm(axis))
+    return out
+
+
+def _perspective_tips(tables: DatasetTables, c: pd.Series, size: int
+                      ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """`simulator_tips` of a configuration seen by a perspective camera."""
+    from vistac_sim.render.view import CameraPose, View
+
+    height = float(((tables.manifest.get("config") or {}).get("hand") or {}).get("height", 0.0))
+    cam = CameraPose(center=(float(c["camera_x"]), float(c["camera_y"])),
+                     tilt=np.radians(float(c["camera_tilt_deg"])),
+                     tilt_azimuth=np.radians(float(c["camera_tilt_azimuth_deg"])),
+                     roll=np.radians(float(c["camera_roll_deg"])),
+                     fovy=np.radians(float(c["camera_fovy_deg"])))
+    view = View(size, size / float(c["px_per_m"]), tables.table_rgb, camera=cam)
+    out = {}
+    for f in FINGERS:
+        tip = np.array([c[f"tip_{f}_x"], c[f"tip_{f}_y"], height])
+        step = np.array([c[f"approach_{f}_x"], c[f"approach_{f}_y"], 0.0])
+        uv = view.project(np.stack([tip, tip + 1e-3 * step / np.linalg.norm(step)]))
+        axis = uv[1] - uv[0]
+        out[f] = (uv[0], axis / np.linalg.norm(axis))
     return out
 
 
@@ -449,6 +547,10 @@ def located_in(tables: DatasetTables, rows: np.ndarray, images: list[np.ndarray]
 def _cache_path(tables: DatasetTables, cfg: LocatorCfg, cache_dir: Path | None) -> Path:
     h = hashlib.sha256()
     h.update(json.dumps({"v": LOCATOR_VERSION, **asdict(cfg)}, sort_keys=True).encode())
+    if cfg.segmenter != "off":
+        from vistac_learn.data.segmenter import weights_digest
+
+        h.update(weights_digest().encode())  # retrained weights locate anew
     h.update(tables.image_fingerprint().encode())  # labels do not move a fingertip
     folder = cache_dir if cache_dir is not None else tables.root / "cache"
     return Path(folder) / f"fingertips-{h.hexdigest()[:20]}.parquet"

@@ -36,6 +36,7 @@ import cv2
 import numpy as np
 
 from vistac.dataset import FINGERS, DatasetTables
+from vistac.dataset.schema import TABLE_RGB
 from vistac_learn.data.fingertips import (
     Fingertip,
     LocatorCfg,
@@ -71,6 +72,10 @@ class PinchCfg:
             face.
         min_face: The face is refitted by a line when its points lie farther than
             min_face * r on both sides of the contact.
+        segmented: Read the image through the learned segmenter first
+            (`vistac_learn.data.segmenter`: its labels drawn in a clean render's flat
+            colours), so that textures, light and camera noise do not reach the colour
+            analysis; the outline is then the segmenter's, to about a pixel.
     """
 
     locator: LocatorCfg = LocatorCfg()
@@ -83,6 +88,7 @@ class PinchCfg:
     step_deg: float = 0.25
     inlier_px: float = 1.0
     min_face: float = 0.25
+    segmented: bool = False
 
 
 @dataclass(frozen=True)
@@ -319,6 +325,10 @@ def predict_image(img: np.ndarray, colours: dict, fingers: tuple[str, ...], fric
         friction: Friction coefficient of the cone.
         cfg: Settings.
     """
+    if cfg.segmented:
+        from vistac_learn.data.segmenter import palette_image, segment_image
+
+        img = palette_image(segment_image(img), colours, TABLE_RGB)
     tips, near_finger, table = locate(img, colours, cfg.locator, cfg.finger_margin_px)
     points = image_outline(img, table, near_finger, cfg.locator.object_tol)
     contacts = {f: (fit_contact(t, points, cfg) if t.ok else Contact.missing())
