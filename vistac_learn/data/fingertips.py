@@ -455,7 +455,7 @@ def simulator_tips(tables: DatasetTables, row: int, size: int
     of a configuration, from ``configs.parquet`` (what the locator is measured against).
 
     A perspective camera (``camera_fovy_deg`` > 0, the ``photo`` preset) projects the fingertip
-    at the hand's height above the table (`vistac_sim.render.view.View.project`); the clean
+    at the hand's height above the table (`vistac_sim.render.shot.Shot.project`); the clean
     orthographic view scales the table-plane position.
 
     Args:
@@ -479,7 +479,7 @@ def simulator_tips(tables: DatasetTables, row: int, size: int
 def _perspective_tips(tables: DatasetTables, c: pd.Series, size: int
                       ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """`simulator_tips` of a configuration seen by a perspective camera."""
-    from vistac_sim.render.view import CameraPose, View
+    from vistac_sim.render.shot import CameraPose, Shot
 
     height = float(((tables.manifest.get("config") or {}).get("hand") or {}).get("height", 0.0))
     cam = CameraPose(center=(float(c["camera_x"]), float(c["camera_y"])),
@@ -487,7 +487,7 @@ def _perspective_tips(tables: DatasetTables, c: pd.Series, size: int
                      tilt_azimuth=np.radians(float(c["camera_tilt_azimuth_deg"])),
                      roll=np.radians(float(c["camera_roll_deg"])),
                      fovy=np.radians(float(c["camera_fovy_deg"])))
-    view = View(size, size / float(c["px_per_m"]), tables.table_rgb, camera=cam)
+    view = Shot(size, size / float(c["px_per_m"]), tables.table_rgb, camera=cam)
     out = {}
     for f in FINGERS:
         tip = np.array([c[f"tip_{f}_x"], c[f"tip_{f}_y"], height])
