@@ -5,10 +5,11 @@ order, the batch it starts from (a resumed epoch) or the number of worker proces
 stacks the samples into the dict a training step takes.
 
 Workers: 0 by default, the samples rendered in the training process when their batch is asked
-for. On a small CPU a rendering process beside torch's own threads oversubscribes the cores (on
-2 cores a training step measured 4 to 8 times slower), while rendering a batch costs a fraction
-of its training step; with more cores to spare, ``workers`` render batches ahead, each worker
-with one torch thread.
+for, by the dataset's threads (`SampleSet.__getitems__`) while the training step waits. On a
+small CPU a rendering process beside torch's own threads oversubscribes the cores (on 2 cores a
+training step measured 4 to 8 times slower), while rendering a batch costs a fraction of its
+training step (about a quarter of its CPU time for the default recipe); with more cores to
+spare, ``workers`` render batches ahead, each worker with one torch thread.
 """
 
 from __future__ import annotations

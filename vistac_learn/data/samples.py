@@ -4,7 +4,8 @@ A sample is (configuration, rotation[, press]). Its image is decoded from the da
 turned into the model's input by a view (`vistac_learn.data.views`) when the item is asked for;
 nothing per rotation or per augmentation is stored, so memory stays flat as the dataset grows
 (one batch of decoded images at a time, plus the per-configuration tables). Batches come from a
-torch `DataLoader` (`vistac_learn.data.loading`).
+torch `DataLoader` (`vistac_learn.data.loading`); a batch's samples are rendered by two threads
+while the training step waits (`SampleSet.__getitems__`).
 
 An item is a pure function of (epoch, index): ``ds[i]`` is sample i at epoch 0 and
 ``ds[epoch, i]`` sample i at an epoch, whatever was asked for before and in whichever loader
@@ -28,11 +29,13 @@ Targets from the repeats of a configuration (`target`):
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 import torch
+from torch.utils.data import get_worker_info
 
 from vistac.config import Config, param
 from vistac.dataset import FINGERS, DatasetTables
@@ -163,13 +166,16 @@ class SampleSet(torch.utils.data.Dataset):
             dataset), e.g. perturbed copies for a stress test.
         mirror: Every sample mirrored, its r_y negated (test-time augmentation; only without
             `augment`, which draws its own mirrors).
+        threads: Threads rendering a batch's samples in the training process (see
+            `__getitems__`).
     """
 
     def __init__(self, tables: DatasetTables, rows: np.ndarray, view: View, size: int,
                  fingers: tuple[str, ...], target: str = "mean", seed: int = 0,
                  rotations: RotationCfg = RotationCfg(), augment: AugmentCfg | None = None,
                  tips: FingertipTable | None = None,
-                 images: Callable[[int], np.ndarray] | None = None, mirror: bool = False):
+                 images: Callable[[int], np.ndarray] | None = None, mirror: bool = False,
+                 threads: int = 2):
         if target not in TARGETS:
             raise UserError(f"target must be one of {', '.join(TARGETS)}, not {target!r}")
         if view.needs_tips and tips is None:
@@ -183,7 +189,7 @@ class SampleSet(torch.utils.data.Dataset):
                                 f"columns bbox_{f}_x|y|w|h with finite values")
         self.tables, self.view, self.size, self.fingers = tables, view, size, tuple(fingers)
         self.target, self.seed, self.rotations, self.augment = target, seed, rotations, augment
-        self.tips, self.mirror = tips, mirror
+        self.tips, self.mirror, self.threads = tips, mirror, threads
         self.images = images
         self._finger_rgb = {f: tables.finger_rgb(f) for f in FINGERS}
         self.rows = np.asarray(rows, dtype=np.int64)
@@ -221,6 +227,16 @@ class SampleSet(torch.utils.data.Dataset):
         return {"image": image, "side": side, "aux": aux, "target": target,
                 "found": self._found[self.item_row[item]],
                 "row": self.item_row[item], "rot": self.item_rot[item]}
+
+    def __getitems__(self, keys: Sequence[Key]) -> list[Item]:
+        """A batch's samples, `self[k]` for each key (torch's batched fetch, which a
+        `DataLoader` calls). In the training process they are rendered by `threads` threads
+        (OpenCV releases the GIL) while the training step waits, so that rendering uses the
+        cores torch's own threads leave idle meanwhile; in a loader worker, one by one."""
+        if self.threads < 2 or len(keys) < 2 or get_worker_info() is not None:
+            return [self[k] for k in keys]
+        with ThreadPoolExecutor(max_workers=self.threads) as pool:
+            return list(pool.map(self.__getitem__, keys))
 
     # ------------------------------------------------------------------ per-sample parameters
     def aug(self, item: int, epoch: int) -> Aug:
@@ -297,7 +313,7 @@ class SampleSet(torch.utils.data.Dataset):
 
     def batch(self, items: Sequence[int], epoch: int = 0) -> dict[str, torch.Tensor]:
         """The samples `items` at an epoch, collated as a `DataLoader` batch (`collate`)."""
-        return collate([self[epoch, int(i)] for i in items])
+        return collate(self.__getitems__([(epoch, int(i)) for i in items]))
 
 
 def collate(items: Sequence[Item]) -> dict[str, torch.Tensor]:
