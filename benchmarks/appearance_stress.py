@@ -101,10 +101,7 @@ def run_predictor(run: Path) -> Predictor:
         tips = located_in(tables, rows, images) if view.needs_tips else None
         ds = SampleSet(tables, rows, view, size, FINGERS, "mean", cfg.seed, cfg.rotation_cfg(),
                        None, tips, images=lambda r: by_row[int(r)])
-        try:
-            pred = predict(model, ds, dev, cfg.eval_batch_size)
-        finally:
-            ds.close()
+        pred = predict(model, ds, dev, cfg.eval_batch_size)
         lost = sum(tips.failures(rows, f) for f in FINGERS) if tips is not None else 0
         return pred, lost
 

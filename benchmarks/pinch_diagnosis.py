@@ -22,8 +22,11 @@ import torch
 
 from vistac.dataset import FINGERS, open_dataset
 from vistac_learn.data.fingertips import fingertip_table
+from vistac_learn.data.loading import loader
+from vistac_learn.evaluate.run import RETRAIN
 from vistac_learn.metrics.scoring import score
 from vistac_learn.models.pinch import compose_labels
+from vistac_learn.train.checkpoints import load_checkpoint, load_weights
 from vistac_learn.train.config import TrainCfg, build_model, build_samples, input_size
 
 
@@ -32,33 +35,31 @@ def diagnose(run: Path, split: str = "val") -> dict:
     cfg = TrainCfg(**json.loads((run / "config.json").read_text())["train"])
     t = open_dataset(cfg.data)
     model = build_model(cfg)
-    model.load_state_dict(torch.load(run / "checkpoints" / "best.pt", weights_only=False)["model"])
+    path = run / "checkpoints" / "best.pt"
+    load_weights(model, load_checkpoint(path, ("model",), RETRAIN)["model"], path, RETRAIN)
     model.eval()
     ds = build_samples(cfg, t, split, input_size(cfg, model),
                        fingertip_table(t, cache_dir=cfg.cache_dir))
     preds: dict[str, list[np.ndarray]] = {}
     errs = []
-    try:
-        with torch.no_grad():
-            for _, b in ds.batches(np.arange(len(ds)), 128):
-                _, g = model(b["image"], b["side"], aux=True)
-                a, side = b["aux"], b["side"]
-                truth = {"p": a[..., 0:2], "normal": a[..., 2:4], "phi": a[..., 4]}
-                variants = {"model": {}, "simulator p": {"p"}, "simulator normal": {"normal"},
-                            "simulator phi": {"phi"}, "simulator p, normal, phi":
-                            {"p", "normal", "phi"}}
-                for name, swap in variants.items():
-                    parts = {k: truth[k] if k in swap else g[k] for k in truth}
-                    lab = compose_labels(parts["p"], parts["normal"], parts["phi"],
-                                         torch.zeros_like(parts["phi"]), side, model.mu)
-                    preds.setdefault(name, []).append(lab.reshape(len(a), -1).numpy())
-                cos = (g["normal"] * truth["normal"]).sum(-1).clamp(-1, 1)
-                errs.append(np.concatenate([
-                    (g["p"] - truth["p"]).norm(dim=-1).numpy(),
-                    np.degrees((g["phi"] - truth["phi"]).abs().numpy()),
-                    np.degrees(torch.arccos(cos).numpy())], axis=1))
-    finally:
-        ds.close()
+    with torch.no_grad():
+        for b in loader(ds, 128):
+            _, g = model(b["image"], b["side"], aux=True)
+            a, side = b["aux"], b["side"]
+            truth = {"p": a[..., 0:2], "normal": a[..., 2:4], "phi": a[..., 4]}
+            variants = {"model": {}, "simulator p": {"p"}, "simulator normal": {"normal"},
+                        "simulator phi": {"phi"}, "simulator p, normal, phi":
+                        {"p", "normal", "phi"}}
+            for name, swap in variants.items():
+                parts = {k: truth[k] if k in swap else g[k] for k in truth}
+                lab = compose_labels(parts["p"], parts["normal"], parts["phi"],
+                                     torch.zeros_like(parts["phi"]), side, model.mu)
+                preds.setdefault(name, []).append(lab.reshape(len(a), -1).numpy())
+            cos = (g["normal"] * truth["normal"]).sum(-1).clamp(-1, 1)
+            errs.append(np.concatenate([
+                (g["p"] - truth["p"]).norm(dim=-1).numpy(),
+                np.degrees((g["phi"] - truth["phi"]).abs().numpy()),
+                np.degrees(torch.arccos(cos).numpy())], axis=1))
     rows = t.rows(split)
     out = {"run": str(run), "split": split, "angle_to_mean_median_deg": {}}
     for name, chunks in preds.items():

@@ -32,6 +32,7 @@ import torch
 from vistac.dataset import FINGERS, open_dataset, unit_labels
 from vistac.dataset.schema import clean_force_columns
 from vistac_learn.data.fingertips import fingertip_table
+from vistac_learn.data.loading import loader
 from vistac_learn.data.samples import SampleSet
 from vistac_learn.data.views import TipCfg, make_view
 from vistac_learn.metrics.scoring import score
@@ -46,28 +47,25 @@ def composed(data: Path, split: str = "test") -> dict[str, np.ndarray]:
     rows = t.rows(split)
     ds = SampleSet(t, rows, make_view("pinch"), 48, FINGERS, tips=fingertip_table(t))
     out: dict[str, list[np.ndarray]] = {}
-    try:
-        for _, b in ds.batches(np.arange(len(ds)), 256):
-            aux, side = b["aux"].double(), b["side"].double()
-            known = torch.isfinite(aux).all(-1, keepdim=True)
-            aux = torch.where(known, aux, torch.tensor([0.0, 0.0, 0.0, -1.0, 0.0]).double())
-            p, n, phi = aux[..., 0:2], aux[..., 2:4], aux[..., 4]
-            zero, down, tip = torch.zeros_like(phi), torch.zeros_like(n), torch.zeros_like(p)
-            down[..., 1] = -1.0
-            tip[..., 1] = -2.0 * TipCfg().forward / TipCfg().span  # crop units: half sides
-            variants = {
-                "simulator contacts, normals, finger axes": (p, n, phi, MU),
-                "... finger axes as located (phi = 0)": (p, n, zero, MU),
-                "... no friction clamp": (p, n, phi, NO_CLAMP),
-                "bare prior: crop centre to crop centre": (torch.zeros_like(p), down, zero,
-                                                           NO_CLAMP),
-                "located tip centre to tip centre": (tip, down, zero, NO_CLAMP),
-            }
-            for name, (pp, nn_, ph, mu) in variants.items():
-                lab = compose_labels(pp, nn_, ph, zero, side, mu).reshape(len(p), -1)
-                out.setdefault(name, []).append(lab.numpy())
-    finally:
-        ds.close()
+    for b in loader(ds, 256):
+        aux, side = b["aux"].double(), b["side"].double()
+        known = torch.isfinite(aux).all(-1, keepdim=True)
+        aux = torch.where(known, aux, torch.tensor([0.0, 0.0, 0.0, -1.0, 0.0]).double())
+        p, n, phi = aux[..., 0:2], aux[..., 2:4], aux[..., 4]
+        zero, down, tip = torch.zeros_like(phi), torch.zeros_like(n), torch.zeros_like(p)
+        down[..., 1] = -1.0
+        tip[..., 1] = -2.0 * TipCfg().forward / TipCfg().span  # crop units: half sides
+        variants = {
+            "simulator contacts, normals, finger axes": (p, n, phi, MU),
+            "... finger axes as located (phi = 0)": (p, n, zero, MU),
+            "... no friction clamp": (p, n, phi, NO_CLAMP),
+            "bare prior: crop centre to crop centre": (torch.zeros_like(p), down, zero,
+                                                       NO_CLAMP),
+            "located tip centre to tip centre": (tip, down, zero, NO_CLAMP),
+        }
+        for name, (pp, nn_, ph, mu) in variants.items():
+            lab = compose_labels(pp, nn_, ph, zero, side, mu).reshape(len(p), -1)
+            out.setdefault(name, []).append(lab.numpy())
     return {k: np.concatenate(v) for k, v in out.items()}
 
 

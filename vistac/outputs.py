@@ -107,8 +107,7 @@ class Run:
             UserError: not a run, no finished epoch, a damaged ``config.json``,
                 ``metrics.csv`` or best checkpoint (one line naming the file).
         """
-        from vistac_learn.train.checkpoints import load_checkpoint
-        from vistac_learn.train.loop import BEST_KEYS
+        from vistac_learn.train.checkpoints import BEST_KEYS, load_checkpoint
         from vistac_learn.train.run_files import read_metrics, read_run_config
 
         path, fix = Path(path), "train the run again"

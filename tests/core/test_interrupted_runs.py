@@ -65,10 +65,10 @@ def test_a_full_disk_is_one_line_and_a_rerun_works(env, monkeypatch, capsys):
     monkeypatch.undo()
     assert main(GEN_OK.format(out=out).split()) == 0  # stopped before its first shard
 
-    import vistac_learn.train.loop as loop
+    import vistac_learn.train.checkpoints as checkpoints
 
     run = env["root"] / "full" / "run"
-    monkeypatch.setattr(loop, "atomic_save", _enospc)
+    monkeypatch.setattr(checkpoints, "atomic_save", _enospc)
     assert main(TRAIN_OK.format(data=env["paths"]["data"], out=run).split()) == 2
     _one_error_line(capsys, "No space left on device")
     monkeypatch.undo()

@@ -49,7 +49,6 @@ def _train_loss(run, split: str = "train") -> float:
     tips = fingertip_table(t, cache_dir=cfg.cache_dir)
     ds = build_samples(cfg, t, split, input_size(cfg, model), tips)
     b = ds.batch(np.arange(len(ds)))
-    ds.close()
     with torch.no_grad():
         return float(masked_mse(apply_model(model, b, "cpu"), b["target"], b["found"]))
 
@@ -174,7 +173,6 @@ def _val_batch(cfg, data: str):
     t = open_dataset(data)
     ds = build_samples(cfg, t, "val", 48, fingertip_table(t, cache_dir=cfg.cache_dir))
     b = ds.batch(np.arange(len(ds)))
-    ds.close()
     return t, b
 
 

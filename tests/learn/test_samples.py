@@ -1,15 +1,18 @@
-"""vistac_learn.data.samples and views: samples rendered per batch, targets, augmentation."""
+"""vistac_learn.data.samples, loading and views: samples rendered per item, batches from a
+`DataLoader`, targets, augmentation."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+import torch
 from learn_fixtures import make_dataset
 
 from vistac.dataset import open_dataset
 from vistac.errors import UserError
 from vistac_learn.data.fingertips import fingertip_table
-from vistac_learn.data.samples import AugmentCfg, RotationCfg, SampleSet, fingers_of
+from vistac_learn.data.loading import EpochBatches, loader
+from vistac_learn.data.samples import AugmentCfg, RotationCfg, SampleSet, collate, fingers_of
 from vistac_learn.data.views import SIDE_FEATURES, Aug, make_view, mirror_labels, tip_crop
 
 
@@ -22,7 +25,7 @@ def ds(tmp_path_factory):
 
 def _set(ds, view="tip", **kw):
     t, tips = ds
-    base = dict(view=make_view(view), size=32, fingers=("index", "thumb"), tips=tips, threads=1)
+    base = dict(view=make_view(view), size=32, fingers=("index", "thumb"), tips=tips)
     return SampleSet(t, t.rows("train"), **(base | kw))
 
 
@@ -221,3 +224,60 @@ def test_appearance_augmentation_places_crops_where_the_locator_finds_the_finger
                 else:
                     assert t.ok
     assert moved > 0  # the perturbations do move what the locator finds
+
+
+def _equal_batches(a: dict, b: dict) -> None:
+    assert a.keys() == b.keys()
+    for k in a:
+        assert a[k].dtype == b[k].dtype, k
+        np.testing.assert_array_equal(a[k].numpy(), b[k].numpy(), err_msg=k)
+
+
+def test_an_item_depends_on_epoch_and_index_only_not_on_order(ds):
+    """Augmentation and press draws come from (seed, epoch, index): a fresh dataset asked in
+    another order, or after other epochs, serves the same samples."""
+    kw = dict(augment=AugmentCfg(appearance=0.5), target="press", seed=5)
+    first = _set(ds, **kw)
+    n = len(first)
+    forward = [first[3, i] for i in range(n)]
+    other = _set(ds, **kw)
+    for e in (0, 7):  # other epochs first: nothing of theirs may stay behind
+        [other[e, i] for i in range(n)]
+    backward = [other[3, i] for i in reversed(range(n))][::-1]
+    for a, b in zip(forward, backward, strict=True):
+        _equal_batches(collate([a]), collate([b]))
+    assert any(not np.array_equal(a["image"], b["image"])
+               for a, b in zip(forward, [first[4, i] for i in range(n)], strict=True))
+    _equal_batches(collate([first[0]]), collate([first[0, 0]]))  # an index alone: epoch 0
+    with pytest.raises(IndexError):
+        first[0, n]
+
+
+def test_loader_batches_equal_the_items_they_hold(ds):
+    """A `DataLoader` batch is the collated items of its keys, in the order given, from the
+    batch asked for; worker processes change nothing."""
+    s = _set(ds, augment=AugmentCfg(appearance=0.5), seed=3)
+    order = np.random.default_rng(0).permutation(len(s))
+    got = list(loader(s, 2, epoch=2, order=order, start=1))
+    sampler = EpochBatches(order, 2, epoch=2, start=1)
+    assert len(got) == len(sampler) == sampler.total - 1
+    for b, batch in enumerate(got, start=1):
+        _equal_batches(batch, collate([s[2, int(i)] for i in order[2 * b:2 * b + 2]]))
+        np.testing.assert_array_equal(batch["row"].numpy(),
+                                      s.item_row[order[2 * b:2 * b + 2]])
+    assert got[0]["image"].dtype == torch.float32 and float(got[0]["image"].max()) <= 1.0
+    for a, b in zip(got, loader(s, 2, epoch=2, order=order, start=1, workers=2), strict=True):
+        _equal_batches(a, b)
+
+
+def test_mirror_is_an_explicit_setting_of_the_samples(ds):
+    """Test-time mirroring: every sample flipped and its r_y negated; it cannot be mixed with
+    drawn augmentation."""
+    plain, mirrored = _set(ds), _set(ds, mirror=True)
+    a, b = plain.batch(range(len(plain))), mirrored.batch(range(len(plain)))
+    np.testing.assert_array_equal(b["image"].numpy(), a["image"].numpy()[..., ::-1])
+    expect = a["target"].numpy().copy()
+    expect[:, 0::2] *= -1
+    np.testing.assert_array_equal(b["target"].numpy(), expect)
+    with pytest.raises(ValueError, match="exclude"):
+        _set(ds, mirror=True, augment=AugmentCfg())

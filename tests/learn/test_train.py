@@ -6,6 +6,7 @@ import csv
 import json
 
 import numpy as np
+import pandas as pd
 import pytest
 import torch
 from learn_fixtures import make_dataset
@@ -58,7 +59,8 @@ def test_run_folder_and_repeatability(ds_dir, tmp_path):
         rows[0])
     meta = json.loads((a / "config.json").read_text())
     assert meta["train"]["model"] == "smallconv" and meta["dataset"]["n_train_configs"] == 4
-    b = train(_cfg(ds_dir, tmp_path / "b"), progress=False)
+    # the same seed gives the same run, whether the samples are rendered here or in workers
+    b = train(_cfg(ds_dir, tmp_path / "b", loader_workers=2), progress=False)
     _same_metrics(a, b, atol=0)
     with pytest.raises(UserError, match="already holds a run"):
         train(_cfg(ds_dir, tmp_path / "a"), progress=False)
@@ -101,10 +103,12 @@ def test_resume_without_intermediate_checkpoints_reruns_the_epoch(ds_dir, tmp_pa
         train(_cfg(ds_dir, tmp_path / "cut", target="press", lr=0.5), resume=True, progress=False)
 
 
-def test_evaluate_run_tta_and_baseline(ds_dir, tmp_path):
+def test_evaluate_run_tta_and_baseline(ds_dir, tmp_path, capsys):
     run = train(_cfg(ds_dir, tmp_path / "run", variant="edge-crop", finger="both", epochs=1,
                      select="in_cone_pct"), progress=False)
+    capsys.readouterr()
     res = evaluate_run(run, split="test")
+    assert capsys.readouterr().out == ""  # the library returns its results, the CLI prints
     out = run / "eval" / "test"
     for name in ("metrics.json", "predictions.parquet", "cones_index.png", "cones_thumb.png",
                  "error_hist_index.png", "rotation_spread_thumb.png"):
@@ -113,6 +117,11 @@ def test_evaluate_run_tta_and_baseline(ds_dir, tmp_path):
     assert "| % correct y | % in cone | median err overall" in res["table"]
     tta = evaluate_run(run, split="test", tta=True, make_plots=False)
     assert tta["n_predictions"] == 2 and tta["tta"]
+    # TTA: each configuration's rotations and their mirrors (r_y negated back), averaged
+    plain = pd.read_parquet(out / "predictions.parquet")
+    both = pd.read_parquet(run / "eval" / "test-tta" / "predictions.parquet")
+    assert not np.allclose(both["pred_index_y"], plain.groupby("config_id")["pred_index_y"]
+                           .mean().loc[both["config_id"]].to_numpy())
     bl = evaluate_baseline(ds_dir, tmp_path / "bl", split="test", finger="index",
                            rotations=RotationCfg("fixed", 20, 18.0))
     assert bl["n_predictions"] == 2 * 20 and bl["failures"] == 0

@@ -122,7 +122,7 @@ def test_box_variant_without_boxes_is_a_clear_error(ds_dir, tmp_path):
     c.drop(columns=[k for k in c.columns if k.startswith("bbox_")]).to_parquet(
         d / "configs.parquet")
     t = open_dataset(d)
-    base = SampleSet(t, t.rows(None), make_view("color-base"), 24, ("index",), threads=1)
+    base = SampleSet(t, t.rows(None), make_view("color-base"), 24, ("index",))
     assert base.batch(np.arange(4))["image"].shape == (4, 3, 24, 24)
     with pytest.raises(UserError, match="needs columns bbox_index"):
         SampleSet(t, t.rows(None), make_view("edge-index"), 24, ("index",))

@@ -1,10 +1,15 @@
-"""The samples of one split, rendered batch by batch from the dataset's images.
+"""The samples of one split as a torch `Dataset`, rendered item by item from the dataset's images.
 
 A sample is (configuration, rotation[, press]). Its image is decoded from the dataset's PNG and
-turned into the model's input by a view (`vistac_learn.data.views`) when its batch is asked for;
+turned into the model's input by a view (`vistac_learn.data.views`) when the item is asked for;
 nothing per rotation or per augmentation is stored, so memory stays flat as the dataset grows
-(one batch of decoded images at a time, plus the per-configuration tables). A batch's images are
-decoded and rendered by a small thread pool (OpenCV releases the GIL) between training steps.
+(one batch of decoded images at a time, plus the per-configuration tables). Batches come from a
+torch `DataLoader` (`vistac_learn.data.loading`); a batch's samples are rendered by two threads
+while the training step waits (`SampleSet.__getitems__`).
+
+An item is a pure function of (epoch, index): ``ds[i]`` is sample i at epoch 0 and
+``ds[epoch, i]`` sample i at an epoch, whatever was asked for before and in whichever loader
+worker; a resumed run, a shuffled order or several workers see the same samples.
 
 Rotations (`RotationCfg`): ``none`` (one sample per configuration), ``fixed`` (n samples per
 configuration at angles k * step, the study's 20 x 18 degrees) or ``random`` (n samples per
@@ -23,12 +28,13 @@ Targets from the repeats of a configuration (`target`):
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 import torch
+from torch.utils.data import get_worker_info
 
 from vistac.config import Config, param
 from vistac.dataset import FINGERS, DatasetTables
@@ -45,6 +51,9 @@ from vistac_learn.data.perturb import (
 )
 from vistac_learn.data.rotations import ROTATION_MODES, RotationCfg  # noqa: F401 (re-exported)
 from vistac_learn.data.views import IDENTITY, Aug, SampleInfo, View
+
+Item = dict[str, np.ndarray]  # one sample: what `SampleSet.__getitem__` returns
+Key = int | tuple[int, int]  # sample index, or (epoch, sample index)
 
 TARGETS = ("mean", "press", "all")
 FINGER_CHOICES = (*FINGERS, "both")  # the values of a `--finger` option
@@ -123,8 +132,8 @@ def perturb_sample(rgb: np.ndarray, info: SampleInfo, finger_rgb: dict[str, tupl
     return out.rgb, SampleInfo(boxes, tips, info.table_rgb, contacts)
 
 
-class SampleSet:
-    """The samples of some configuration rows, served as rendered batches.
+class SampleSet(torch.utils.data.Dataset):
+    """The samples of some configuration rows, one rendered sample per item.
 
     Args:
         tables: The dataset.
@@ -137,28 +146,35 @@ class SampleSet:
         rotations: Samples per configuration and their angles.
         augment: Augmentation (None: none, as at evaluation).
         tips: Located fingertips (required by views that need them).
-        threads: Rendering threads.
         images: Where a configuration row's image comes from (default: decoded from the
             dataset), e.g. perturbed copies for a stress test.
+        mirror: Every sample mirrored, its r_y negated (test-time augmentation; only without
+            `augment`, which draws its own mirrors).
+        threads: Threads rendering a batch's samples in the training process (see
+            `__getitems__`).
     """
 
     def __init__(self, tables: DatasetTables, rows: np.ndarray, view: View, size: int,
                  fingers: tuple[str, ...], target: str = "mean", seed: int = 0,
                  rotations: RotationCfg = RotationCfg(), augment: AugmentCfg | None = None,
-                 tips: FingertipTable | None = None, threads: int = 2,
-                 images: Callable[[int], np.ndarray] | None = None):
+                 tips: FingertipTable | None = None,
+                 images: Callable[[int], np.ndarray] | None = None, mirror: bool = False,
+                 threads: int = 2):
         if target not in TARGETS:
             raise UserError(f"target must be one of {', '.join(TARGETS)}, not {target!r}")
         if view.needs_tips and tips is None:
             raise ValueError(f"view {view.name} needs located fingertips")
+        if mirror and augment is not None:
+            raise ValueError("mirror (every sample) and augment (drawn mirrors) exclude "
+                             "each other")
         for f in view.needs_boxes:
             if not tables.has_boxes(f):
                 raise UserError(f"{tables.root / 'configs.parquet'}: view {view.name} needs "
                                 f"columns bbox_{f}_x|y|w|h with finite values")
         self.tables, self.view, self.size, self.fingers = tables, view, size, tuple(fingers)
         self.target, self.seed, self.rotations, self.augment = target, seed, rotations, augment
-        self.tips, self.threads = tips, threads
-        self.image = images or (lambda row: read_rgb(tables.image_path(row)))
+        self.tips, self.mirror, self.threads = tips, mirror, threads
+        self.images = images
         self._finger_rgb = {f: tables.finger_rgb(f) for f in FINGERS}
         self.rows = np.asarray(rows, dtype=np.int64)
         n_rot = rotations.count
@@ -176,21 +192,40 @@ class SampleSet:
         self._found = np.stack(ok, axis=1)
         self._table_rgb = tables.table_rgb
         self._contacts = contact_truth(tables) if view.needs_contacts else None
-        self._pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
-        self.mirror_all = False  # test-time augmentation: every sample mirrored
+        self._draws: tuple[int, np.ndarray] | None = None  # (epoch, press draws), see targets
 
     def __len__(self) -> int:
         return len(self.item_row)
 
-    def close(self) -> None:
-        """Stop the rendering threads."""
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            self._pool = None
+    def __getitem__(self, key: Key) -> Item:
+        """Sample `key` (an index, or (epoch, index)): its rendered input, augmented target,
+        auxiliary targets (NaN where unknown), found-mask and ids, as NumPy arrays."""
+        epoch, item = (0, key) if np.isscalar(key) else key
+        epoch, item = int(epoch), int(item)
+        if not 0 <= item < len(self):
+            raise IndexError(f"sample {item} of {len(self)}")
+        image, side, aux, aug = self.render(item, epoch)
+        target = self.targets(np.array([item]), epoch)[0]
+        if aug.mirror:
+            target[0::2] *= -1  # r_y of every finger changes sign in a mirrored view
+        return {"image": image, "side": side, "aux": aux, "target": target,
+                "found": self._found[self.item_row[item]],
+                "row": self.item_row[item], "rot": self.item_rot[item]}
+
+    def __getitems__(self, keys: Sequence[Key]) -> list[Item]:
+        """A batch's samples, `self[k]` for each key (torch's batched fetch, which a
+        `DataLoader` calls). In the training process they are rendered by `threads` threads
+        (OpenCV releases the GIL) while the training step waits, so that rendering uses the
+        cores torch's own threads leave idle meanwhile; in a loader worker, one by one."""
+        if self.threads < 2 or len(keys) < 2 or get_worker_info() is not None:
+            return [self[k] for k in keys]
+        with ThreadPoolExecutor(max_workers=self.threads) as pool:
+            return list(pool.map(self.__getitem__, keys))
 
     # ------------------------------------------------------------------ per-sample parameters
     def aug(self, item: int, epoch: int) -> Aug:
-        """The sample's augmentation at an epoch (identity without `augment`)."""
+        """The sample's augmentation at an epoch (identity without `augment`, but for the
+        rotation and `mirror`)."""
         mode, rot = self.rotations.mode, int(self.item_rot[item])
         if mode == "fixed":
             angle = rot * self.rotations.step_deg
@@ -199,8 +234,7 @@ class SampleSet:
         else:
             angle = 0.0
         if self.augment is None:
-            return Aug(angle=angle, mirror=self.mirror_all) if angle or self.mirror_all \
-                else IDENTITY
+            return Aug(angle=angle, mirror=self.mirror) if angle or self.mirror else IDENTITY
         return self.augment.draw(np.random.default_rng([self.seed, epoch, item, 2]), angle)
 
     def targets(self, items: np.ndarray, epoch: int = 0) -> np.ndarray:
@@ -211,19 +245,32 @@ class SampleSet:
             return self._mean[rows].astype(np.float32)
         press = self.item_press[items]
         if self.target == "press":
-            rng = np.random.default_rng([self.seed, epoch])
-            draws = rng.random(len(self.item_row))[items]
+            draws = self._press_draws(epoch)[items]
             press = np.array([int(d * len(self.tables.cones[self.fingers[0]][r]))
                               for d, r in zip(draws, rows, strict=True)])
         out = [np.stack([self.tables.cones[f][r][k] for r, k in zip(rows, press, strict=True)])
                for f in self.fingers]
         return np.concatenate(out, axis=1).astype(np.float32)
 
+    def _press_draws(self, epoch: int) -> np.ndarray:
+        """One uniform draw per sample from (seed, epoch), which press is its target
+        (``press`` target); the last epoch's kept, so that items do not draw them again."""
+        if self._draws is None or self._draws[0] != epoch:
+            rng = np.random.default_rng([self.seed, epoch])
+            self._draws = (epoch, rng.random(len(self.item_row)))
+        return self._draws[1]
+
     def found(self, items: np.ndarray) -> np.ndarray:
         """(len(items), F) whether each finger was located (always True for views without)."""
         return self._found[self.item_row[np.asarray(items, dtype=np.int64)]]
 
     # ------------------------------------------------------------------ rendering
+    def image(self, row: int) -> np.ndarray:
+        """The RGB image of a configuration row."""
+        if self.images is not None:
+            return self.images(row)
+        return read_rgb(self.tables.image_path(row))
+
     def info(self, row: int) -> SampleInfo:
         """Boxes, fingertips and background of a configuration row."""
         boxes = {f: self.tables.box(row, f) for f in self.view.needs_boxes}
@@ -235,9 +282,9 @@ class SampleSet:
                         for i, f in enumerate(FINGERS) if c.known[row, i]}
         return SampleInfo(boxes, tips, self._table_rgb, contacts)
 
-    def render(self, item: int, epoch: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def render(self, item: int, epoch: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, Aug]:
         """One sample's model input: pixels (uint8), side features and auxiliary targets
-        (float32)."""
+        (float32), and the augmentation they were rendered with."""
         row = int(self.item_row[item])
         rgb = self.image(row)
         info, aug = self.info(row), self.aug(item, epoch)
@@ -245,38 +292,17 @@ class SampleSet:
             rgb, info = perturb_sample(rgb, info, self._finger_rgb,
                                        np.random.default_rng(aug.appearance))
         return (self.view.render(rgb, info, aug, self.size, self.fingers),
-                self.view.side(info, aug, self.fingers), self.view.aux(info, aug, self.fingers))
+                self.view.side(info, aug, self.fingers), self.view.aux(info, aug, self.fingers),
+                aug)
 
-    def batch(self, items: np.ndarray, epoch: int = 0) -> dict[str, torch.Tensor]:
-        """Rendered inputs (pixels and side features), augmented targets, auxiliary targets
-        (NaN where unknown), found-masks and ids."""
-        items = np.asarray(items, dtype=np.int64)
-        if self._pool is not None and len(items) > 1:
-            done = list(self._pool.map(lambda i: self.render(int(i), epoch), items))
-        else:
-            done = [self.render(int(i), epoch) for i in items]
-        imgs, side, aux = [d[0] for d in done], [d[1] for d in done], [d[2] for d in done]
-        target = self.targets(items, epoch)
-        mirrored = np.array([self.aug(int(i), epoch).mirror for i in items], bool)
-        target[mirrored, 0::2] *= -1  # r_y of every finger changes sign in a mirrored view
-        return {
-            "image": torch.from_numpy(np.stack(imgs).astype(np.float32) / 255.0),
-            "side": torch.from_numpy(np.stack(side).astype(np.float32)),
-            "aux": torch.from_numpy(np.stack(aux).astype(np.float32)),
-            "target": torch.from_numpy(target),
-            "found": torch.from_numpy(self.found(items)),
-            "row": torch.from_numpy(self.item_row[items]),
-            "rot": torch.from_numpy(self.item_rot[items]),
-        }
+    def batch(self, items: Sequence[int], epoch: int = 0) -> dict[str, torch.Tensor]:
+        """The samples `items` at an epoch, collated as a `DataLoader` batch (`collate`)."""
+        return collate(self.__getitems__([(epoch, int(i)) for i in items]))
 
-    def batches(self, order: np.ndarray, batch_size: int, epoch: int = 0,
-                start: int = 0) -> Iterator[tuple[int, dict[str, torch.Tensor]]]:
-        """(batch index, batch) for the samples in `order`, from batch `start` on.
 
-        Batches are rendered when asked for, not ahead: a rendering thread running beside
-        torch's own threads oversubscribes a small CPU (measured on 2 cores: a training step
-        4 to 8 times slower), while rendering a batch costs a fraction of its training step.
-        """
-        n = (len(order) + batch_size - 1) // batch_size
-        for b in range(start, n):
-            yield b, self.batch(order[b * batch_size:(b + 1) * batch_size], epoch)
+def collate(items: Sequence[Item]) -> dict[str, torch.Tensor]:
+    """Samples stacked into the batch a training step takes: ``image`` float32 in [0, 1],
+    ``side``, ``aux`` and ``target`` float32, ``found`` bool, ``row`` and ``rot`` int64."""
+    out = {k: torch.from_numpy(np.stack([it[k] for it in items])) for k in items[0]}
+    out["image"] = out["image"].float().div_(255.0)
+    return out

@@ -203,15 +203,12 @@ def evaluate_run(
         coverage.check(max_missing_pct)
     ds = build_samples(cfg, tables, split, size, tips)
     t0 = time.perf_counter()
-    try:
-        pred = predict(model, ds, dev, cfg.eval_batch_size)
-        if tta:
-            ds.mirror_all = True
-            mirrored = predict(model, ds, dev, cfg.eval_batch_size)
-            mirrored[:, 0::2] *= -1
-            pred = 0.5 * (pred + mirrored)
-    finally:
-        ds.close()
+    pred = predict(model, ds, dev, cfg.eval_batch_size)
+    if tta:
+        mirrored = predict(model, build_samples(cfg, tables, split, size, tips, mirror=True),
+                           dev, cfg.eval_batch_size)
+        mirrored[:, 0::2] *= -1
+        pred = 0.5 * (pred + mirrored)
     elapsed = time.perf_counter() - t0
     item_row, item_rot = ds.item_row, ds.item_rot
     if tta:

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
+from vistac_learn.data.loading import loader
 from vistac_learn.metrics.cone import cone_metrics
 from vistac_learn.models.tipnet import apply_model
 
@@ -32,15 +33,16 @@ ANGLE_COLUMNS = (
 
 
 @torch.no_grad()
-def predict(model: torch.nn.Module, ds, device: torch.device | str, batch_size: int = 64
-            ) -> np.ndarray:
-    """Model outputs for every sample of a `SampleSet`, in sample order, as float64 (M, 2F).
+def predict(model: torch.nn.Module, ds, device: torch.device | str, batch_size: int = 64,
+            workers: int = 0) -> np.ndarray:
+    """Model outputs for every sample of a `SampleSet`, in sample order, as float64 (M, 2F)
+    (`workers`: loader processes, `vistac_learn.data.loading.loader`).
 
     A finger that was not located in its image gets (0, -1), straight against the approach.
     """
     model.eval()
     out = []
-    for _, batch in ds.batches(np.arange(len(ds)), batch_size):
+    for batch in loader(ds, batch_size, workers=workers):
         p = apply_model(model, batch, device).float().cpu().numpy().astype(np.float64)
         lost = ~batch["found"].numpy()
         for k in range(lost.shape[1]):

@@ -1,4 +1,8 @@
-"""Checkpoint files of a run: atomic saves, safe loads, starting from another run.
+"""Checkpoint files of a run: atomic saves, safe loads, the loop's state, starting from another run.
+
+``checkpoints/last.pt`` (`save_last`, `restore_last`) holds what continuing needs: the model,
+optimiser and schedule states, the torch RNG state and the `LoopState` (position, running loss,
+history, best so far); ``checkpoints/best.pt`` (`save_best`) the weights of the best epoch.
 
 A checkpoint holds tensors and plain data only (dicts, lists, numbers, strings): `atomic_save`
 turns NumPy scalars and arrays, tuples' contents and paths into plain values before saving, and
@@ -18,6 +22,7 @@ from __future__ import annotations
 import io
 import os
 from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +31,78 @@ import torch
 from vistac.dataset.files import atomic_write_bytes
 from vistac.errors import UserError
 from vistac_learn.train.run_files import read_run_config
+
+LAST_KEYS = ("model", "optimizer", "schedule", "torch_rng", "epoch", "batch", "run_sum",
+             "run_n", "history", "best_value", "best_epoch")
+BEST_KEYS = ("model", "epoch")
+RESTART = "rerun without --resume to start the run over"
+
+
+@dataclass
+class LoopState:
+    """Where a training run stands (saved in ``last.pt``).
+
+    Attributes:
+        epoch: Epochs finished (the epoch under way, 0-based).
+        batch: Batches of that epoch done.
+        run_sum: Sum of the epoch's training losses so far, weighted by batch size.
+        run_n: Samples behind `run_sum`.
+        history: One metrics row per finished epoch.
+        best_value: The selection quantity of the best epoch so far.
+        best_epoch: The best epoch so far (1-based).
+    """
+
+    epoch: int = 0
+    batch: int = 0
+    run_sum: float = 0.0
+    run_n: int = 0
+    history: list[dict] = field(default_factory=list)
+    best_value: float | None = None
+    best_epoch: int | None = None
+
+    def improves(self, value: float, higher: bool) -> bool:
+        """Whether `value` beats the best so far (the first value always does)."""
+        return self.best_value is None or (value > self.best_value if higher
+                                           else value < self.best_value)
+
+
+def save_last(path: Path, model: torch.nn.Module, opt, sched, state: LoopState, cfg,
+              device: torch.device) -> None:
+    """Write ``last.pt``: model, optimiser, schedule, RNG states, `state` and the settings."""
+    atomic_save({
+        "model": model.state_dict(), "optimizer": opt.state_dict(),
+        "schedule": sched.state_dict(), "torch_rng": torch.get_rng_state(),
+        "cuda_rng": torch.cuda.get_rng_state_all() if device.type == "cuda" else None,
+        **asdict(state), "cfg": asdict(cfg),
+    }, path)
+
+
+def restore_last(ck: dict, path: Path, model: torch.nn.Module, opt, sched,
+                 device: torch.device) -> LoopState:
+    """Load a `load_checkpoint` of ``last.pt`` into model, optimiser, schedule and the torch RNG;
+    return the loop's state.
+
+    Raises:
+        UserError: states that do not fit (a damaged or foreign file).
+    """
+    load_weights(model, ck["model"], path, RESTART)
+    try:
+        opt.load_state_dict(ck["optimizer"])
+        sched.load_state_dict(ck["schedule"])
+        torch.set_rng_state(ck["torch_rng"])
+    except (ValueError, TypeError, KeyError, RuntimeError) as exc:
+        raise UserError(f"{path}: damaged state ({exc}); {RESTART}") from None
+    if device.type == "cuda" and ck.get("cuda_rng") is not None:
+        torch.cuda.set_rng_state_all(ck["cuda_rng"])
+    return LoopState(ck["epoch"], ck["batch"], ck["run_sum"], ck["run_n"], ck["history"],
+                     ck["best_value"], ck["best_epoch"])
+
+
+def save_best(path: Path, model: torch.nn.Module, epoch: int, select: str, value: float,
+              cfg) -> None:
+    """Write ``best.pt``: the weights of the best epoch, which it was and by what."""
+    atomic_save({"model": model.state_dict(), "epoch": epoch, "select": select,
+                 "value": value, "cfg": asdict(cfg)}, path)
 
 
 def plain(obj):

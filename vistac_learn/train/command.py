@@ -45,7 +45,7 @@ def options_cfg(args: argparse.Namespace) -> TrainCfg:
 
 def _handler(args: argparse.Namespace) -> int:
     from vistac.api import train
-    from vistac_learn.train.loop import finished
+    from vistac_learn.train.run_folder import finished
 
     cfg = options_cfg(args)
     done = args.resume and finished(Path(cfg.out), cfg.epochs)

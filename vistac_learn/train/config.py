@@ -112,6 +112,9 @@ class TrainCfg(Config):
     checkpoint_every: int = param(0, ge=0, help="also checkpoint every N batches (0: at epoch "
                                   "ends only)")
     eval_batch_size: int = param(256, ge=1, help="samples per forward pass when scoring")
+    loader_workers: int = param(0, ge=0, le=64, help="processes rendering batches ahead of "
+                                "the training step (0: rendered in the training process, the "
+                                "fastest on a small CPU)")
     max_missing_pct: float = param(MAX_MISSING_PCT, ge=0, le=100, help="tip view: refuse to "
                                    "train when the fingertips of more than this share (%%) of "
                                    "a split's configurations are not found in their images")
@@ -246,16 +249,18 @@ def subset_rows(rows: np.ndarray, fraction: float, seed: int) -> np.ndarray:
 
 
 def build_samples(cfg: TrainCfg, tables: DatasetTables, split: str, size: int,
-                  tips: FingertipTable | None, train: bool = False) -> SampleSet:
+                  tips: FingertipTable | None, train: bool = False,
+                  mirror: bool = False) -> SampleSet:
     """The samples of one split: training ones with the run's augmentation (and only its
-    `train_fraction`), others whole and without augmentation."""
+    `train_fraction`), others whole and without augmentation; `mirror` (not with `train`):
+    every sample mirrored (test-time augmentation)."""
     view = build_view(cfg)
     rows = tables.rows(split)
     if train:
         rows = subset_rows(rows, cfg.train_fraction, cfg.seed)
     return SampleSet(tables, rows, view, size, fingers_of(cfg.finger),
                      cfg.target if train else "mean", cfg.seed, cfg.rotation_cfg(),
-                     cfg.augment_cfg() if train else None, tips)
+                     cfg.augment_cfg() if train else None, tips, mirror=mirror)
 
 
 def run_coverage(cfg: TrainCfg, tables: DatasetTables, tips: FingertipTable | None

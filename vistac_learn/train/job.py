@@ -22,10 +22,11 @@ from vistac import engine
 from vistac.config import Config, param
 from vistac.errors import UserError
 from vistac_learn.data.samples import fingers_of
-from vistac_learn.train.checkpoints import load_checkpoint
+from vistac_learn.train.checkpoints import BEST_KEYS, RESTART, load_checkpoint
 from vistac_learn.train.config import TrainCfg
-from vistac_learn.train.loop import BEST_KEYS, RESTART, TrainingDiverged, damage, train
+from vistac_learn.train.loop import TrainingDiverged, train
 from vistac_learn.train.run_files import read_metrics
+from vistac_learn.train.run_folder import damage
 
 OBJECTIVE = "angle_to_mean_median_deg"
 RESUME = ("no", "yes", "auto")

@@ -1,4 +1,9 @@
-"""The training loop: one function, `train(cfg)`, shared by `vistac train`, tuning and experiments.
+"""The training loop: `train(cfg)`, shared by `vistac train`, tuning and experiments.
+
+`train` holds the run folder's lock and strings the parts together: the folder's policy
+(`vistac_learn.train.run_folder`), the samples and their `DataLoader`
+(`vistac_learn.data.loading`), `train_one_epoch`, `validate`, the selection of the best epoch
+and the checkpoints (`vistac_learn.train.checkpoints`).
 
 After each epoch the model is scored on the validation split (never on the test split) and the
 best epoch by the selection metric is kept as `best.pt`.
@@ -16,7 +21,8 @@ Run folder (``--out``):
 
 Repeatability: weights are initialised after ``torch.manual_seed(seed)``; the order of the
 training samples in epoch e is a permutation drawn from ``numpy.random.default_rng([seed, e])``
-and every sample's augmentation from (seed, e, sample), independent of what ran before; the torch
+and every sample's augmentation from (seed, e, sample), independent of what ran before and of
+the loader's workers (``loader_workers``); the torch
 RNG state travels in the checkpoint. A run killed at any point and continued with ``--resume``
 therefore replays exactly the batches the uninterrupted run would have seen; on CPU its metrics
 are bit-identical. A run killed before its first checkpoint is simply started again.
@@ -31,15 +37,10 @@ damaged run says which file and that a plain rerun starts over.
 
 from __future__ import annotations
 
-import csv
-import io
-import json
 import math
-import platform
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -47,17 +48,23 @@ import torch
 from tqdm import tqdm
 
 from vistac.dataset import open_dataset
-from vistac.dataset.files import atomic_write_bytes, atomic_write_json, remove_stale_temporaries
+from vistac.dataset.files import remove_stale_temporaries
 from vistac.errors import UserError
 from vistac.folder_lock import hold
 from vistac_learn.data.fingertips import fingertip_table
-from vistac_learn.data.samples import fingers_of
+from vistac_learn.data.loading import loader
+from vistac_learn.data.samples import SampleSet, fingers_of
 from vistac_learn.metrics.scoring import predict, score_predictions
 from vistac_learn.train.checkpoints import (
-    atomic_save,
+    BEST_KEYS,
+    LAST_KEYS,
+    RESTART,
+    LoopState,
     init_from_run,
     load_checkpoint,
-    load_weights,
+    restore_last,
+    save_best,
+    save_last,
     trainable_parameters,
 )
 from vistac_learn.train.config import (
@@ -71,16 +78,13 @@ from vistac_learn.train.config import (
 )
 from vistac_learn.train.losses import batch_loss, masked_mse  # noqa: F401  (masked_mse: API)
 from vistac_learn.train.memory import check_fits
-from vistac_learn.train.run_files import read_run_config, run_settings
+from vistac_learn.train.run_files import append_metrics, mark_diverged, restore_metrics
+from vistac_learn.train.run_folder import RunFolder, run_meta
+
+__all__ = ["BEST_KEYS", "DIVERGED_LOSS", "LAST_KEYS", "RESTART", "TrainingDiverged", "diverged",
+           "evaluate_loss", "train", "train_one_epoch", "validate"]
 
 HIGHER_IS_BETTER = frozenset({"correct_y_pct", "in_cone_pct", "n_in_cone"})
-RUN_FILES = frozenset({"config.json", "metrics.csv", "checkpoints", "eval"})
-
-
-LAST_KEYS = ("model", "optimizer", "schedule", "torch_rng", "epoch", "batch", "run_sum",
-             "run_n", "history", "best_value", "best_epoch")
-BEST_KEYS = ("model", "epoch")
-RESTART = "rerun without --resume to start the run over"
 DIVERGED_LOSS = 100.0
 """A loss above this is divergence. Targets are unit vectors: a model that predicts the
 opposite direction everywhere has an MSE of 2, one predicting zero of 0.5; a loss of 100 needs
@@ -112,52 +116,13 @@ def _selection_value(row: dict, select: str, fingers: tuple[str, ...]) -> tuple[
     return float(np.mean([row[k] for k in keys])), select in HIGHER_IS_BETTER
 
 
-def _append_rows(path: Path, rows: list[dict]) -> None:
-    """Append rows to the metrics CSV (header written when the file is new)."""
-    new = not path.exists() or path.stat().st_size == 0
-    with path.open("a", newline="") as fh:
-        w = csv.DictWriter(fh, fieldnames=list(rows[0].keys()))
-        if new:
-            w.writeheader()
-        w.writerows(rows)
-
-
-def _restore_metrics(path: Path, history: list[dict]) -> None:
-    """Make the metrics CSV hold exactly the checkpoint's `history`: rows a kill kept from
-    being appended are added, a cut or edited table is written again."""
-    buf = io.StringIO(newline="")
-    if history:
-        w = csv.DictWriter(buf, fieldnames=list(history[0].keys()))
-        w.writeheader()
-        w.writerows(history)
-    want = buf.getvalue().encode()
-    if not path.exists() or path.read_bytes() != want:
-        atomic_write_bytes(path, want)
-
-
-def evaluate_loss(model, ds, device, batch_size: int) -> tuple[float, np.ndarray]:
+def evaluate_loss(model, ds, device, batch_size: int, workers: int = 0
+                  ) -> tuple[float, np.ndarray]:
     """(MSE against the mean unit labels, predictions (M, 2F)) over every sample."""
-    pred = predict(model, ds, device, batch_size)
+    pred = predict(model, ds, device, batch_size, workers)
     found = np.repeat(ds.found(np.arange(len(ds))), 2, axis=1)
     err = (pred - ds.targets(np.arange(len(ds)))) ** 2
     return float((err * found).sum() / max(found.sum(), 1)), pred
-
-
-def _check_resume(cfg: TrainCfg, out: Path, fingerprint: str) -> None:
-    saved = read_run_config(out, RESTART)
-    mine = asdict(cfg)
-    diff = [k for k in mine if k not in ("epochs", "out", "data", "cache_dir", "max_missing_pct")
-            and saved["train"].get(k) != mine[k]]
-    if diff:
-        raise UserError(f"{out / 'config.json'}: --resume with different settings "
-                        f"({', '.join(diff)})")
-    if saved["dataset"]["fingerprint"] != fingerprint:
-        raise UserError(f"--data {cfg.data}: not the dataset this run started on (its "
-                        f"fingerprint differs from {saved['dataset']['path']}'s)")
-    planned = saved["train"].get("epochs")
-    if cfg.schedule == "onecycle" and planned != cfg.epochs:
-        raise UserError(f"--epochs {cfg.epochs}: the run's one-cycle schedule was planned for "
-                        f"{planned} epochs; resume with --epochs {planned}")
 
 
 def _optimizer(cfg: TrainCfg, model: torch.nn.Module, steps: int):
@@ -172,6 +137,78 @@ def _optimizer(cfg: TrainCfg, model: torch.nn.Module, steps: int):
     else:
         sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda _: 1.0)
     return opt, sched
+
+
+def train_one_epoch(model: torch.nn.Module, ds: SampleSet, opt, sched, cfg: TrainCfg,
+                    device: torch.device, state: LoopState,
+                    save: Callable[[], None] | None = None,
+                    on_batch: Callable[[int, int], None] | None = None,
+                    progress: bool = False) -> None:
+    """Train epoch ``state.epoch`` from batch ``state.batch`` on, in the epoch's seeded order;
+    `state` follows (batch, running loss).
+
+    Args:
+        model: The model, on `device`.
+        ds: The training samples.
+        opt: The optimiser.
+        sched: The learning-rate schedule, stepped after every batch.
+        cfg: The run's settings (batch size, seed, aux weight, checkpoint_every, workers).
+        device: Where the model is.
+        state: Position and running loss; updated after every step.
+        save: Called after every ``cfg.checkpoint_every`` batches (but the last).
+        on_batch: Called as ``on_batch(epoch, batch)`` after every optimiser step.
+        progress: Show a tqdm bar.
+
+    Raises:
+        TrainingDiverged: a training loss that is not finite or above `DIVERGED_LOSS`.
+    """
+    epoch = state.epoch
+    perm = np.random.default_rng([cfg.seed, epoch]).permutation(len(ds))
+    batches = loader(ds, cfg.batch_size, epoch, perm, state.batch, cfg.loader_workers)
+    n_batches = batches.batch_sampler.total
+    _train_mode(model, cfg.freeze)
+    bar = tqdm(total=n_batches, initial=state.batch, desc=f"epoch {epoch + 1}/{cfg.epochs}",
+               disable=not progress, leave=False, unit="batch")
+    try:
+        for b, batch in enumerate(batches, start=state.batch):
+            n = len(batch["target"])
+            opt.zero_grad(set_to_none=True)
+            loss = batch_loss(model, batch, device, cfg.aux_weight)
+            value = float(loss.detach())
+            if diverged(value):
+                raise TrainingDiverged(epoch + 1, "training loss", value, cfg.lr)
+            loss.backward()
+            opt.step()
+            sched.step()
+            state.run_sum += value * n
+            state.run_n += n
+            state.batch = b + 1
+            bar.update(1)
+            bar.set_postfix(loss=f"{state.run_sum / state.run_n:.4g}")
+            if save is not None and cfg.checkpoint_every and \
+                    (b + 1) % cfg.checkpoint_every == 0 and b + 1 < n_batches:
+                save()
+            if on_batch is not None:
+                on_batch(epoch, b)
+    finally:
+        bar.close()
+
+
+def validate(model: torch.nn.Module, ds: SampleSet, cfg: TrainCfg, device: torch.device,
+             epoch: int) -> dict:
+    """The validation part of an epoch's metrics row: loss and every finger's metrics.
+
+    Raises:
+        TrainingDiverged: predictions or a loss that are not finite, a loss above
+            `DIVERGED_LOSS`.
+    """
+    val_loss, pred = evaluate_loss(model, ds, device, cfg.eval_batch_size, cfg.loader_workers)
+    if not np.isfinite(pred).all() or diverged(val_loss):
+        raise TrainingDiverged(epoch + 1, "validation loss", val_loss, cfg.lr)
+    row = {"val_loss": val_loss}
+    for f, m in score_predictions(pred, ds).items():
+        row |= {f"val_{f}_{k}": v for k, v in m.items()}
+    return row
 
 
 def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
@@ -199,26 +236,8 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
 
 def _train(cfg: TrainCfg, resume: bool, progress: bool,
            on_batch: Callable[[int, int], None] | None) -> Path:
-    out = Path(cfg.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out}: exists and is not a folder")
-    if out.is_dir() and not (out / "config.json").exists() \
-            and any(p.name not in RUN_FILES for p in out.iterdir()):
-        raise UserError(f"--out {out}: a folder that is not a run and not empty; choose another")
-    ckpt_dir = out / "checkpoints"
-    last_path, best_path = ckpt_dir / "last.pt", ckpt_dir / "best.pt"
-    metrics_path = out / "metrics.csv"
-    started = last_path.exists()
-    if resume and not started and not (out / "config.json").exists():
-        raise UserError(f"{out}: no run to resume (no config.json); drop --resume to start one")
-    if not resume and started and (_diverged(out) or damage(out)):
-        # a rerun (with a lower lr, or over damaged files) starts over
-        for p in (last_path, best_path, metrics_path):
-            p.unlink(missing_ok=True)
-        started = False
-    if not resume and started:
-        raise UserError(f"{out}: already holds a run; pass --resume or choose another --out")
-
+    folder = RunFolder(Path(cfg.out))
+    started = folder.prepare(resume)
     device = resolve_device(cfg.device)
     if device.type == "cuda":  # CPU kernels are deterministic already
         torch.backends.cudnn.deterministic = True
@@ -226,10 +245,10 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
     tables = open_dataset(cfg.data)
     fingerprint = tables.fingerprint()
     if started:
-        _check_resume(cfg, out, fingerprint)
-        ck = load_checkpoint(last_path, LAST_KEYS, RESTART, map_location=device)
-        if best_path.exists():
-            load_checkpoint(best_path, BEST_KEYS, RESTART)
+        folder.check_resume(cfg, fingerprint)
+        ck = load_checkpoint(folder.last, LAST_KEYS, RESTART, map_location=device)
+        if folder.best.exists():
+            load_checkpoint(folder.best, BEST_KEYS, RESTART)
     fingers = fingers_of(cfg.finger)
     model = build_model(cfg)
     init_note = init_from_run(model, cfg) if cfg.init and not started else None
@@ -245,142 +264,53 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
     n_batches = math.ceil(len(train_ds) / cfg.batch_size)
     opt, sched = _optimizer(cfg, model, n_batches * cfg.epochs)
 
-    start_epoch, start_batch, history = 0, 0, []
-    run_sum, run_n = 0.0, 0
-    best_value, best_epoch = None, None
     if started:
-        remove_stale_temporaries(ckpt_dir)
-        try:
-            load_weights(model, ck["model"], last_path, RESTART)
-            opt.load_state_dict(ck["optimizer"])
-            sched.load_state_dict(ck["schedule"])
-            torch.set_rng_state(ck["torch_rng"])
-        except (ValueError, TypeError, KeyError, RuntimeError) as exc:
-            raise UserError(f"{last_path}: damaged state ({exc}); {RESTART}") from None
-        if device.type == "cuda" and ck.get("cuda_rng") is not None:
-            torch.cuda.set_rng_state_all(ck["cuda_rng"])
-        start_epoch, start_batch = ck["epoch"], ck["batch"]
-        run_sum, run_n = ck["run_sum"], ck["run_n"]
-        history, best_value, best_epoch = ck["history"], ck["best_value"], ck["best_epoch"]
-        _restore_metrics(metrics_path, history)  # a kill before an append, a damaged table
+        remove_stale_temporaries(folder.checkpoints)
+        state = restore_last(ck, folder.last, model, opt, sched, device)
+        restore_metrics(folder.metrics, state.history)  # a kill before an append, a damaged table
     else:  # a new run, or one killed before its first checkpoint: start (again) from scratch
-        ckpt_dir.mkdir(parents=True, exist_ok=True)
-        remove_stale_temporaries(ckpt_dir)
-        metrics_path.unlink(missing_ok=True)
-        atomic_write_json(out / "config.json", _run_meta(cfg, model, tables, fingerprint,
-                                                         train_ds, val_ds, device, init_note)
-                          | {"fingertips": {c.split: c.as_dict() for c in coverage}})
+        state = LoopState()
+        folder.start(run_meta(cfg, model, tables, fingerprint, train_ds, val_ds, device,
+                              init_note)
+                     | {"fingertips": {c.split: c.as_dict() for c in coverage}})
         if init_note and progress:
             tqdm.write(f"init: {init_note['summary']}", file=sys.stderr)
 
-    def save_last(epoch: int, batch: int) -> None:
-        atomic_save({
-            "model": model.state_dict(), "optimizer": opt.state_dict(),
-            "schedule": sched.state_dict(), "torch_rng": torch.get_rng_state(),
-            "cuda_rng": torch.cuda.get_rng_state_all() if device.type == "cuda" else None,
-            "epoch": epoch, "batch": batch, "run_sum": run_sum, "run_n": run_n,
-            "history": history, "best_value": best_value, "best_epoch": best_epoch,
-            "cfg": asdict(cfg),
-        }, last_path)
+    def save() -> None:
+        save_last(folder.last, model, opt, sched, state, cfg, device)
 
     try:
-        for epoch in range(start_epoch, cfg.epochs):
+        while state.epoch < cfg.epochs:
+            epoch = state.epoch
             t0 = time.perf_counter()
-            perm = np.random.default_rng([cfg.seed, epoch]).permutation(len(train_ds))
-            _train_mode(model, cfg.freeze)
-            first = start_batch if epoch == start_epoch else 0
-            if first == 0:
-                run_sum, run_n = 0.0, 0
-            bar = tqdm(total=n_batches, initial=first, desc=f"epoch {epoch + 1}/{cfg.epochs}",
-                       disable=not progress, leave=False, unit="batch")
-            for b, batch in train_ds.batches(perm, cfg.batch_size, epoch, first):
-                y = batch["target"].to(device)
-                opt.zero_grad(set_to_none=True)
-                loss = batch_loss(model, batch, device, cfg.aux_weight)
-                if diverged(float(loss.detach())):
-                    raise TrainingDiverged(epoch + 1, "training loss",
-                                           float(loss.detach()), cfg.lr)
-                loss.backward()
-                opt.step()
-                sched.step()
-                run_sum += float(loss.detach()) * len(y)
-                run_n += len(y)
-                bar.update(1)
-                bar.set_postfix(loss=f"{run_sum / run_n:.4g}")
-                if cfg.checkpoint_every and (b + 1) % cfg.checkpoint_every == 0 \
-                        and b + 1 < n_batches:
-                    save_last(epoch, b + 1)
-                if on_batch is not None:
-                    on_batch(epoch, b)
-            bar.close()
+            if state.batch == 0:
+                state.run_sum, state.run_n = 0.0, 0
+            train_one_epoch(model, train_ds, opt, sched, cfg, device, state, save, on_batch,
+                            progress)
             train_time = time.perf_counter() - t0
-            val_loss, pred = evaluate_loss(model, val_ds, device, cfg.eval_batch_size)
-            if not np.isfinite(pred).all() or diverged(val_loss):
-                raise TrainingDiverged(epoch + 1, "validation loss", val_loss, cfg.lr)
-            row = {"epoch": epoch + 1, "train_loss": run_sum / max(run_n, 1),
-                   "val_loss": val_loss, "lr": float(opt.param_groups[0]["lr"])}
-            for f, m in score_predictions(pred, val_ds).items():
-                row |= {f"val_{f}_{k}": v for k, v in m.items()}
-            row |= {"train_s": train_time, "epoch_s": time.perf_counter() - t0}
+            row = {"epoch": epoch + 1, "train_loss": state.run_sum / max(state.run_n, 1)}
+            val = validate(model, val_ds, cfg, device, epoch)
+            row |= {"val_loss": val.pop("val_loss"), "lr": float(opt.param_groups[0]["lr"])}
+            row |= val | {"train_s": train_time, "epoch_s": time.perf_counter() - t0}
             value, higher = _selection_value(row, cfg.select, fingers)
-            improved = best_value is None or (value > best_value if higher else value < best_value)
+            improved = state.improves(value, higher)
             if improved:
-                best_value, best_epoch = value, epoch + 1
-                atomic_save({"model": model.state_dict(), "epoch": epoch + 1,
-                             "select": cfg.select, "value": value, "cfg": asdict(cfg)},
-                            best_path)
-            history.append(row)
-            run_sum, run_n = 0.0, 0
-            save_last(epoch + 1, 0)
-            _append_rows(metrics_path, [row])
+                state.best_value, state.best_epoch = value, epoch + 1
+                save_best(folder.best, model, epoch + 1, cfg.select, value, cfg)
+            state.history.append(row)
+            state.epoch, state.batch, state.run_sum, state.run_n = epoch + 1, 0, 0.0, 0
+            save()
+            append_metrics(folder.metrics, [row])
             if progress:
                 tqdm.write(
                     f"epoch {epoch + 1}/{cfg.epochs}: train loss {row['train_loss']:.4g}, "
-                    f"val loss {val_loss:.4g}, {cfg.select} {value:.4g}"
+                    f"val loss {row['val_loss']:.4g}, {cfg.select} {value:.4g}"
                     + (" (best)" if improved else "") + f", {row['epoch_s']:.1f} s",
                     file=sys.stderr)
     except TrainingDiverged as exc:  # mark the run, so that a rerun into --out starts over
-        meta = json.loads((out / "config.json").read_text())
-        atomic_write_json(out / "config.json", meta | {"diverged": {"epoch": exc.epoch,
-                                                                     "message": str(exc)}})
+        mark_diverged(folder.path, exc.epoch, str(exc))
         raise
-    finally:
-        train_ds.close()
-        val_ds.close()
-    return out
-
-
-def _diverged(out: Path) -> bool:
-    """Whether the run in `out` stopped on a diverging loss."""
-    try:
-        return bool(json.loads((out / "config.json").read_text()).get("diverged"))
-    except (OSError, ValueError, AttributeError):
-        return False
-
-
-def damage(out: Path) -> str | None:
-    """Why the started run in `out` cannot be continued (a damaged config.json or checkpoint),
-    or None (no run, or an intact one)."""
-    if not (out / "checkpoints" / "last.pt").exists():
-        return None
-    try:
-        run_settings(out, read_run_config(out, RESTART), RESTART)
-        load_checkpoint(out / "checkpoints" / "last.pt", LAST_KEYS, RESTART)
-        if (out / "checkpoints" / "best.pt").exists():
-            load_checkpoint(out / "checkpoints" / "best.pt", BEST_KEYS, RESTART)
-    except UserError as exc:
-        return str(exc)
-    return None
-
-
-def finished(out: Path, epochs: int) -> bool:
-    """Whether the run in `out` has trained `epochs` epochs (its last checkpoint is at the end
-    of the last one); False for no run or a damaged one."""
-    try:
-        ck = load_checkpoint(Path(out) / "checkpoints" / "last.pt", LAST_KEYS, RESTART)
-    except UserError:
-        return False
-    return ck["epoch"] >= epochs and ck["batch"] == 0
+    return folder.path
 
 
 def _train_mode(model: torch.nn.Module, freeze: str) -> None:
@@ -391,40 +321,3 @@ def _train_mode(model: torch.nn.Module, freeze: str) -> None:
         for name, module in model.named_modules():
             if name.endswith("features"):
                 module.eval()
-
-
-def _run_meta(cfg, model, tables, fingerprint, train_ds, val_ds, device, init_note) -> dict:
-    from vistac_learn.models import count_macs
-
-    size = input_size(cfg, model)
-    per_sample = (*(() if not hasattr(model, "n_fingers") else (model.n_fingers,)),
-                  build_view(cfg).channels, size, size)
-    return {
-        "train": asdict(cfg),
-        "model": {"name": cfg.model, "input_size": size,
-                  "params": sum(p.numel() for p in model.parameters()),
-                  "trainable_params": sum(p.numel() for p in trainable_parameters(model)),
-                  "macs_per_sample": _macs(model, per_sample, count_macs)},
-        "dataset": {"path": str(Path(cfg.data).resolve()), "fingerprint": fingerprint,
-                    "n_train_configs": len(train_ds.rows), "n_val_configs": len(val_ds.rows),
-                    "n_train_samples": len(train_ds), "n_val_samples": len(val_ds)},
-        "init": init_note,
-        "device": str(device),
-        "versions": {"torch": torch.__version__, "numpy": np.__version__,
-                     "python": platform.python_version()},
-    }
-
-
-def _macs(model, shape, count_macs) -> int:
-    """MACs of one sample (every finger's crop for per-finger models).
-
-    Raises:
-        UserError: the model cannot take inputs of this size (``--size`` too small).
-    """
-    try:
-        if hasattr(model, "n_fingers"):
-            return model.n_fingers * count_macs(model.net, shape[1:])
-        return count_macs(model, shape)
-    except RuntimeError as exc:
-        raise UserError(f"--size {shape[-1]}: too small for this model "
-                        f"({str(exc).splitlines()[0]})") from None

@@ -1,4 +1,4 @@
-"""Reading a run folder's own files, checked: ``config.json`` and ``metrics.csv``.
+"""A run folder's own files, ``config.json`` and ``metrics.csv``: read checked, written safely.
 
 A truncated, hand-edited or foreign file is one `UserError` naming the file, what is wrong and
 what to do about it (the caller's `fix`), never a traceback. Checkpoints are read by
@@ -8,11 +8,13 @@ what to do about it (the caller's `fix`), never a traceback. Checkpoints are rea
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from vistac.dataset.files import atomic_write_bytes, atomic_write_json
 from vistac.errors import UserError
 
 if TYPE_CHECKING:
@@ -93,3 +95,42 @@ def read_metrics(path: Path, fix: str) -> list[dict[str, float]]:
                             f"belongs; {fix}")
         rows.append(row)
     return rows
+
+
+def append_metrics(path: Path, rows: list[dict]) -> None:
+    """Append rows to a run's ``metrics.csv`` (header written when the file is new)."""
+    new = not path.exists() or path.stat().st_size == 0
+    with path.open("a", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0].keys()))
+        if new:
+            w.writeheader()
+        w.writerows(rows)
+
+
+def restore_metrics(path: Path, history: list[dict]) -> None:
+    """Make ``metrics.csv`` hold exactly a checkpoint's `history`: rows a kill kept from being
+    appended are added, a cut or edited table is written again."""
+    buf = io.StringIO(newline="")
+    if history:
+        w = csv.DictWriter(buf, fieldnames=list(history[0].keys()))
+        w.writeheader()
+        w.writerows(history)
+    want = buf.getvalue().encode()
+    if not path.exists() or path.read_bytes() != want:
+        atomic_write_bytes(path, want)
+
+
+def mark_diverged(run: Path, epoch: int, message: str) -> None:
+    """Record in ``config.json`` that the run stopped on a diverging loss (a rerun into the
+    folder then starts over)."""
+    path = Path(run) / CONFIG
+    meta = json.loads(path.read_text())
+    atomic_write_json(path, meta | {"diverged": {"epoch": epoch, "message": message}})
+
+
+def is_diverged(run: Path) -> bool:
+    """Whether the run in `run` stopped on a diverging loss (`mark_diverged`)."""
+    try:
+        return bool(json.loads((Path(run) / CONFIG).read_text()).get("diverged"))
+    except (OSError, ValueError, AttributeError):
+        return False
