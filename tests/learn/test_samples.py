@@ -202,30 +202,6 @@ def test_train_config_switches_appearance_augmentation_on():
         protocol_cfg("default", "d", "r", appearance=1.5)
 
 
-def test_appearance_augmentation_places_crops_where_the_locator_finds_the_fingers(ds):
-    """Training sees the locator's own errors on perturbed images: each fingertip of a
-    perturbed sample is where the locator finds it in that image (as at test time), or, where
-    it finds nothing, the clean tip moved by the perturbation."""
-    from vistac_learn.data.fingertips import locate_fingertips
-    from vistac_learn.data.samples import perturb_sample
-
-    s = _set(ds)
-    moved = 0
-    for row in range(4):
-        rgb, info = s.image(row), s.info(row)
-        for seed in range(3):
-            out, pinfo = perturb_sample(rgb, info, s._finger_rgb, np.random.default_rng(seed))
-            again = locate_fingertips(out, s._finger_rgb)
-            for f, t in pinfo.tips.items():
-                if again[f].ok:
-                    np.testing.assert_allclose(t.tip, again[f].tip)
-                    np.testing.assert_allclose(t.axis, again[f].axis)
-                    moved += not np.allclose(t.tip, info.tips[f].tip)
-                else:
-                    assert t.ok
-    assert moved > 0  # the perturbations do move what the locator finds
-
-
 def _equal_batches(a: dict, b: dict) -> None:
     assert a.keys() == b.keys()
     for k in a:

@@ -40,7 +40,7 @@ from vistac.config import Config, param
 from vistac.dataset import FINGERS, DatasetTables
 from vistac.errors import UserError
 from vistac_learn.data.contacts import contact_truth
-from vistac_learn.data.fingertips import Fingertip, FingertipTable, locate_fingertips, read_rgb
+from vistac_learn.data.fingertips import Fingertip, FingertipTable, read_rgb
 from vistac_learn.data.perturb import (
     Scene,
     map_direction,
@@ -94,27 +94,22 @@ class AugmentCfg(Config):
 def perturb_sample(rgb: np.ndarray, info: SampleInfo, finger_rgb: dict[str, tuple],
                    rng: np.random.Generator) -> tuple[np.ndarray, SampleInfo]:
     """A clean render perturbed toward a photograph along a random set of axes
-    (`vistac_learn.data.perturb`), with its finger boxes and the simulator's contacts moved by
-    the tilt, and its fingertips located again in the perturbed image, as they will be in a
-    photograph: the model then learns from crops placed with the locator's errors on such
-    images, not only from crops placed on clean renders (a finger the locator misses there
-    keeps its clean position, moved by the tilt)."""
+    (`vistac_learn.data.perturb`), with its fingertips, finger boxes and the simulator's
+    contacts moved by the tilt."""
     scene = Scene(segment(rgb, finger_rgb, info.table_rgb), finger_rgb)
     out = perturb_axes(random_axes(rng), rgb, scene, rng)
     hom = out.homography
-    again = locate_fingertips(out.rgb, {f: finger_rgb[f] for f in info.tips}) \
-        if info.tips else {}
+    if np.allclose(hom, np.eye(3)):
+        return out.rgb, info
     tips = {}
     for f, t in info.tips.items():
-        if again[f].ok or not t.ok:
-            tips[f] = again[f] if again[f].ok else t
+        if not t.ok:
+            tips[f] = t
             continue
         tip = map_points(hom, t.tip[None])[0]
         edge = map_points(hom, (t.tip + t.radius * np.array([-t.axis[1], t.axis[0]]))[None])[0]
         tips[f] = Fingertip(tip, map_direction(hom, t.tip, t.axis),
                             float(np.hypot(*(edge - tip))))
-    if np.allclose(hom, np.eye(3)):
-        return out.rgb, SampleInfo(info.boxes, tips, info.table_rgb, info.contacts)
     boxes = {}
     for f, b in info.boxes.items():
         if b is None:
