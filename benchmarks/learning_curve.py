@@ -11,13 +11,14 @@ and scores each on the whole test split (held-out objects), beside the reference
 training: the noise floor (the dataset's noise-free forces scored like a prediction), the pinch
 baseline (image-only contact geometry) and the training split's mean label.
 
-Epochs: every run gets at least as many optimiser steps as the default recipe on a
-3000-configuration dataset (15 epochs; ``--sample-budget`` 45000 = 15 x 3000 samples, more than
-its 15 x ~2100 training configurations): ``epochs = max(--min-epochs, ceil(budget / n))``,
-at most ``--max-epochs``, since on small sets every epoch's validation pass over the whole
-validation split costs more than the training pass. Each run's best epoch (chosen on the
-validation split) is reported beside its epochs, with the validation angle half-way and at the
-best epoch, so a reader sees whether more epochs would have helped.
+Epochs: every run on 1000 configurations or more gets at least as many optimiser steps as the
+default recipe on a 3000-configuration dataset (15 epochs x 2059 training configurations of
+`vistac generate --n 3000 --noise 0.05 --seed 21 --split-by object`: 975 steps of 32, about
+``--sample-budget`` 31000 samples): ``epochs = max(--min-epochs, ceil(budget / n))``, at most
+``--max-epochs``, since on small sets every epoch's validation pass over the whole validation
+split costs more than the training pass (300 configurations: 30 epochs, 300 steps). Each run's
+best epoch (chosen on the validation split) is reported beside its epochs, with the validation
+angle half-way and at the best epoch, so a reader sees whether more epochs would have helped.
 
 Memory stays flat as the training set grows: images are decoded per batch. Training wall and
 CPU seconds are recorded per run (`learnbench.run_entry`); on a shared machine the CPU seconds
@@ -55,11 +56,13 @@ from learnbench import (  # noqa: E402
     reference_entries,
     run_entry,
     save,
+    slug,
 )
 from matplotlib.ticker import ScalarFormatter  # noqa: E402
 
 from vistac.dataset import open_dataset  # noqa: E402
 from vistac_learn.train.config import TrainCfg  # noqa: E402
+from vistac_learn.train.loop import finished  # noqa: E402
 
 RECIPES = (("default (pinchnet, pinch view)", {}),
            ("previous default (tipnet, tip view)", {"model": "tipnet", "variant": "tip"}))
@@ -121,7 +124,8 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
     plt.close(fig)
 
 
-def report(rows: list[dict], refs: list[dict], out: Path, data: Path, settings: dict) -> None:
+def report(rows: list[dict], refs: list[dict], out: Path, data: Path, settings: dict,
+           missing: list[str] = ()) -> None:
     """Table, JSON and plot of the runs so far."""
     peak_mib = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     head = ["recipe", "train configs", "epochs (best)", "optimiser steps", "index °",
@@ -135,7 +139,8 @@ def report(rows: list[dict], refs: list[dict], out: Path, data: Path, settings: 
             str(r["steps"]), fmt(r["index_deg"]), fmt(r["thumb_deg"]), fmt(r["index_in_cone"]),
             f"{fmt(trace[len(trace) // 2 - 1] if len(trace) > 1 else trace[0])} -> "
             f"{fmt(trace[r['best_epoch'] - 1])}",
-            fmt(r["train_s"] / 60), fmt((r["train_cpu_s"] or float("nan")) / 60)]) + " |")
+            fmt((r["train_wall_s"] or float("nan")) / 60),
+            fmt((r["train_cpu_s"] or float("nan")) / 60)]) + " |")
     for ref in refs:
         m = ref["metrics"]
         lines.append("| " + " | ".join([
@@ -146,10 +151,12 @@ def report(rows: list[dict], refs: list[dict], out: Path, data: Path, settings: 
         f"\n\nPeak resident memory of this benchmark process: {peak_mib:.0f} MiB (each run's "
         "`peak_rss_mib` in the JSON is this process's peak after it; runs a resumed report did "
         "not train itself add nothing).")
+    if missing:
+        md += "\n\nNot trained (no result): " + ", ".join(missing) + "."
     plot(rows, refs, out / "learning_curve.png")
     save(out, "learning_curve", {"dataset": str(data), "machine": machine(),
                                  "settings": settings, "rows": rows, "references": refs,
-                                 "peak_rss_mib": peak_mib}, md)
+                                 "missing": list(missing), "peak_rss_mib": peak_mib}, md)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -165,11 +172,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--recipes", nargs="+", default=[name for name, _ in RECIPES],
                    choices=[name for name, _ in RECIPES], metavar="RECIPE",
                    help="recipes to train, in this order (each over all sizes, small first)")
-    p.add_argument("--sample-budget", type=int, default=45000,
-                   help="training samples seen per run at least (15 epochs x 3000)")
+    p.add_argument("--sample-budget", type=int, default=31000,
+                   help="training samples seen per run at least (the default recipe's on 3000 "
+                   "configurations: 15 epochs x 2059)")
     p.add_argument("--min-epochs", type=int, default=3)
     p.add_argument("--max-epochs", type=int, default=30,
                    help="epochs at most (small sets: validation dominates the cost)")
+    p.add_argument("--no-train", action="store_true",
+                   help="report the finished runs only; list the others as missing")
     p.add_argument("--quiet", action="store_true")
     args = p.parse_args(argv)
     data = args.data or ensure_dataset(args.out / "data", headline_data(args.n, args.seed))
@@ -178,12 +188,16 @@ def main(argv: list[str] | None = None) -> int:
     refs = [*reference_entries(data), mean_entry(data)]
     settings = {k: str(v) for k, v in vars(args).items()}
     kwargs = dict(RECIPES)
-    rows = []
+    rows, missing = [], []
     for name in args.recipes:
         for n in sizes:
             frac = n / n_all
             epochs = epochs_for(n, args.sample_budget, args.min_epochs, args.max_epochs)
-            e = run_entry(data, args.out, f"{name} n{n}", "default", not args.quiet,
+            label = f"{name} n{n}"
+            if args.no_train and not finished(args.out / "runs" / slug(label), epochs):
+                missing.append(f"{label} ({epochs} epochs)")
+                continue
+            e = run_entry(data, args.out, label, "default", not args.quiet,
                           finger="both", train_fraction=frac, epochs=epochs, **kwargs[name])
             m = e["metrics"]
             n_train = e["n_train"]
@@ -199,7 +213,9 @@ def main(argv: list[str] | None = None) -> int:
                 "steps": e["epochs"] * math.ceil(n_train / TrainCfg().batch_size),
                 "val_deg": val_trace(Path(e["run"])), "macs": e["macs"],
                 "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024})
-            report(rows, refs, args.out, data, settings)  # after every run: keeps its points
+            report(rows, refs, args.out, data, settings, missing)  # after every run
+    if not rows:
+        report(rows, refs, args.out, data, settings, missing)
     return 0
 
 
