@@ -101,13 +101,16 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
         for r in rs:  # each point's training configurations, on the time panel
             axes[1].annotate(f"{r['n_train']}", (r["train_cpu_s"] / 60, r["index_deg"]),
                              fontsize=6, xytext=(3, 3), textcoords="offset points")
+    values = [r[k] for r in rows for k in ("index_deg", "thumb_deg")]
+    top = 1.6 * max(values) if values else None  # the mean label stays far above the models
     for ref, style in zip(refs, (":", "--", "-."), strict=False):
         deg = _ref_deg(ref)
         m = ref["metrics"]
+        off = " (above the plot)" if top is not None and deg > top else ""
         for ax in axes:
             ax.axhline(deg, color="grey", ls=style, lw=1,
                        label=f"{ref['label']}: {m['index']['angle_to_mean_median_deg']:.2f} / "
-                       f"{m['thumb']['angle_to_mean_median_deg']:.2f}")
+                       f"{m['thumb']['angle_to_mean_median_deg']:.2f}{off}")
     for ax, label in ((axes[0], "training configurations"),
                       (axes[1], "training CPU minutes (1 torch thread)")):
         ax.set_xscale("log")
@@ -118,7 +121,10 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
         ax.set_xlabel(label)
         ax.set_ylabel("median angle to cone mean, test (deg)")
         ax.grid(alpha=0.3, which="both")
-    axes[0].legend(fontsize=6)
+        if top is not None:
+            floor = min([*values, *(_ref_deg(r) for r in refs)])
+            ax.set_ylim(0.85 * floor, top)
+    axes[0].legend(fontsize=6, title="index / thumb (deg)", title_fontsize=6)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
