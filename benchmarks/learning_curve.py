@@ -93,10 +93,12 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for colour, name in zip(colours, dict.fromkeys(r["recipe"] for r in rows), strict=False):
         rs = sorted((r for r in rows if r["recipe"] == name), key=lambda r: r["n_train"])
-        for ax, key, scale in ((axes[0], "n_train", 1), (axes[1], "train_cpu_s", 1 / 60)):
-            x = [r[key] * scale for r in rs]
-            ax.plot(x, [r["index_deg"] for r in rs], "o-", color=colour, label=f"{name}: index")
-            ax.plot(x, [r["thumb_deg"] for r in rs], "s--", color=colour,
+        for ax, key, scale, lines in ((axes[0], "n_train", 1, ("o-", "s--")),
+                                      (axes[1], "train_cpu_s", 1 / 60, ("o", "s"))):
+            x = [r[key] * scale for r in rs]  # time is not monotonic in size: points only
+            ax.plot(x, [r["index_deg"] for r in rs], lines[0], color=colour,
+                    label=f"{name}: index")
+            ax.plot(x, [r["thumb_deg"] for r in rs], lines[1], color=colour,
                     label=f"{name}: thumb")
         for r in rs:  # each point's training configurations, on the time panel
             axes[1].annotate(f"{r['n_train']}", (r["train_cpu_s"] / 60, r["index_deg"]),
