@@ -106,7 +106,7 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
     done = [r for r in rows if r.get("deg") is not None]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, key, label in ((axes[0], "macs", "MACs per sample (both fingers)"),
-                           (axes[1], "train_min", "training time (min, 1 torch thread)")):
+                           (axes[1], "train_min", "training time (wall min, shared machine)")):
         xs, ys = [r[key] for r in done], [r["deg"] for r in done]
         ax.scatter(xs, ys)
         for r in done:
@@ -117,10 +117,9 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
             ax.axhline(deg, color="grey", ls=style, lw=1, label=f"{ref['label']}: {deg:.2f}")
         front = pareto(xs, ys)
         ax.plot([xs[i] for i in front], [ys[i] for i in front], "r--", lw=1, label="Pareto front")
-        ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel(label)
-        ax.set_ylabel("median angle to cone mean, test (deg, mean of fingers)")
+        ax.set_ylabel("test: median angle to cone mean (deg, mean of fingers)", fontsize=8)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
