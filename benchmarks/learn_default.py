@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import resource
 import sys
 import time
 from pathlib import Path
@@ -44,6 +43,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from learnbench import (  # noqa: E402
     baseline_entry,
+    cpu_s,
     ensure_dataset,
     headline_data,
     machine,
@@ -59,12 +59,6 @@ from vistac.dataset.schema import clean_force_columns  # noqa: E402
 from vistac_learn.metrics.scoring import score  # noqa: E402
 
 
-def _cpu_s() -> float:
-    """CPU seconds (user + system) of this process and its finished children."""
-    own, kids = (resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
-    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
-
-
 def _default_entry(data: Path, out: Path, progress: bool) -> dict:
     """The default run, with the wall and CPU time of its (uninterrupted) training.
 
@@ -74,11 +68,11 @@ def _default_entry(data: Path, out: Path, progress: bool) -> dict:
     label = "default (pinchnet, pinch view)"
     wall = out / "runs" / slug(label) / "wall_s.json"
     fresh = not (out / "runs" / slug(label) / "metrics.csv").exists()
-    t0, c0 = time.perf_counter(), _cpu_s()
+    t0, c0 = time.perf_counter(), cpu_s()
     entry = run_entry(data, out, label, "default", progress, finger="both")
     if fresh:
         wall.write_text(json.dumps({"wall_s": time.perf_counter() - t0,
-                                    "cpu_s": _cpu_s() - c0}))
+                                    "cpu_s": cpu_s() - c0}))
     timing = json.loads(wall.read_text()) if wall.exists() else {}
     entry["wall_s"], entry["cpu_s"] = timing.get("wall_s"), timing.get("cpu_s")
     return entry

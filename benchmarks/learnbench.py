@@ -12,6 +12,7 @@ import json
 import os
 import platform
 import re
+import resource
 import time
 from pathlib import Path
 
@@ -21,6 +22,7 @@ import torch
 import vistac
 from vistac.dataset import FINGERS, SplitCfg, open_dataset
 from vistac_learn.data.samples import RotationCfg
+from vistac_learn.evaluate.references import LABELS, references
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.metrics import cone_metrics
 from vistac_learn.train.config import protocol_cfg
@@ -63,14 +65,33 @@ def _epoch_rows(run: Path) -> list[dict]:
         return list(csv.DictReader(fh))
 
 
+def cpu_s() -> float:
+    """CPU seconds (user + system) of this process and its finished children."""
+    own, kids = (resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
+
+
 def run_entry(data: Path, out: Path, label: str, protocol: str = "default",
               progress: bool = True, **changes) -> dict:
-    """Train (or finish training) one run and score its best epoch on the test split."""
+    """Train (or finish training) one run and score its best epoch on the test split.
+
+    The wall and CPU seconds of the `train` calls (locating fingertips not yet cached
+    included) add up in ``<run>/train_time.json`` over resumed sessions: on a shared machine
+    the CPU seconds are the comparable figure.
+    """
     run = out / "runs" / slug(label)
     cfg = protocol_cfg(protocol, str(data), str(run), device="cpu", **changes)
+    timing_path = run / "train_time.json"
     if len(_epoch_rows(run)) < cfg.epochs:
         print(f"== {label}: training", flush=True)
+        t0, c0 = time.perf_counter(), cpu_s()
         train(cfg, resume=(run / "checkpoints" / "last.pt").exists(), progress=progress)
+        spent = json.loads(timing_path.read_text()) if timing_path.exists() else {}
+        timing_path.write_text(json.dumps({
+            "wall_s": spent.get("wall_s", 0.0) + time.perf_counter() - t0,
+            "cpu_s": spent.get("cpu_s", 0.0) + cpu_s() - c0,
+            "sessions": spent.get("sessions", 0) + 1}))
+    timing = json.loads(timing_path.read_text()) if timing_path.exists() else {}
     scored = run / "eval" / "test" / "metrics.json"
     best = run / "checkpoints" / "best.pt"
     if scored.exists() and scored.stat().st_mtime > best.stat().st_mtime:
@@ -87,6 +108,7 @@ def run_entry(data: Path, out: Path, label: str, protocol: str = "default",
             "train_s": float(sum(float(r["train_s"]) for r in rows)),
             "train_s_per_epoch": float(np.mean([float(r["train_s"]) for r in rows])),
             "images_per_s": res["images_per_s"],
+            "train_wall_s": timing.get("wall_s"), "train_cpu_s": timing.get("cpu_s"),
             "n_train": meta["dataset"]["n_train_configs"], "run": str(run)}
 
 
@@ -98,6 +120,18 @@ def baseline_entry(data: Path, out: Path, fingers=FINGERS) -> dict:
     return {"label": "geometric baseline (non-learned)", "kind": "baseline",
             "fingers": res["fingers"], "metrics": res["metrics"], "macs": None,
             "train_s": 0.0, "images_per_s": res["images_per_s"], "failures": res["failures"]}
+
+
+def reference_entries(data: Path, fingers=FINGERS) -> list[dict]:
+    """The noise floor and the pinch baseline on the whole test split (unrotated images; the
+    pinch summary is cached in the dataset's ``cache/``), or none for a dataset without the
+    simulator's clean forces."""
+    t = open_dataset(data)
+    refs = references(t, t.rows("test"), tuple(fingers))
+    if refs is None:
+        return []
+    return [{"label": LABELS[k], "kind": "reference", "fingers": list(fingers),
+             "metrics": refs[k]["metrics"], "macs": None, "train_s": 0.0} for k in LABELS]
 
 
 def mean_entry(data: Path, fingers=FINGERS) -> dict:

@@ -1,14 +1,18 @@
 """Accuracy against cost for the model zoo, on one split: MACs, train time, inference, accuracy.
 
-Every model is trained with the default recipe on the tip view (both fingers, one shared net,
-crops rendered at the model's own input size: 48 px for tipnet, 100 or 227 px for the study's
-nets) on the same dataset and scored on its test split. Before training, a few training steps
-are timed; a model whose estimated training time exceeds ``--budget-min`` is not trained (its
-MACs and speed are still reported, its accuracy is "-"). Inference is timed on batches of 64
-samples (both fingers' crops) with torch's default threads.
+Every model is trained with the default recipe (pinch view: the model is the backbone reading
+each fingertip crop's contact point and normal, the label composed from them; crops rendered at
+the model's own input size: 48 px for pinchnet and tipnet, 100 or 227 px for the study's nets)
+on the same dataset and scored on its test split; ``--tip-models`` are also trained on the tip
+view (crops, label regressed: tipnet there is the previous default). Before training, a few
+training steps are timed; a model whose estimated training time exceeds ``--budget-min`` is not
+trained (its MACs and speed are still reported, its accuracy is "-"). The estimate counts the
+optimiser steps only (no rendering, no validation), so real runs take longer. Inference is
+timed on batches of 64 samples (both fingers' crops) with torch's threads. The references that
+need no training (noise floor, pinch baseline, mean label) are scored on the same test split.
 
 Writes ``model_zoo.md`` / ``.json`` and ``model_zoo.png`` (Pareto fronts: accuracy against MACs
-and against training time) into ``--out``; reruns resume.
+and against training time, the references as horizontal lines) into ``--out``; reruns resume.
 
 Usage:
     python benchmarks/model_zoo.py --data bench/default/data --out bench/zoo
@@ -34,6 +38,8 @@ from learnbench import (  # noqa: E402
     fmt,
     headline_data,
     machine,
+    mean_entry,
+    reference_entries,
     run_entry,
     save,
     slug,
@@ -43,13 +49,14 @@ from vistac.dataset import open_dataset  # noqa: E402
 from vistac_learn.models import count_macs  # noqa: E402
 from vistac_learn.train.config import build_model, input_size, protocol_cfg  # noqa: E402
 
-MODELS = ("tipnet", "smallconv", "randomconv", "mobilenetv2-tiny", "resnet-tiny",
+MODELS = ("pinchnet", "tipnet", "smallconv", "randomconv", "mobilenetv2-tiny", "resnet-tiny",
           "schoeconv100-v1", "schoeconv100-v3-fc160", "alexnet-1x1", "schoeconv227-v1")
 
 
-def _timings(name: str, epochs: int, batch: int, n_train: int) -> dict:
-    """MACs per sample, inference ms per sample, and an estimate of the training time."""
-    cfg = protocol_cfg("default", "", "", model=name)
+def _timings(name: str, view: str, epochs: int, batch: int, n_train: int) -> dict:
+    """MACs per sample, inference ms per sample, and an estimate of the training time (the
+    optimiser steps alone)."""
+    cfg = protocol_cfg("default", "", "", model=name, variant=view)
     model = build_model(cfg)
     s = input_size(cfg, model)
     macs = model.n_fingers * count_macs(model.net, (3, s, s))
@@ -89,22 +96,30 @@ def pareto(xs: list[float], ys: list[float]) -> list[int]:
     return front
 
 
-def plot(rows: list[dict], path: Path) -> None:
-    """Accuracy against MACs and against training time, Pareto fronts drawn."""
+def _mean_deg(metrics: dict) -> float:
+    """Median angle to the cone mean, averaged over the fingers."""
+    return float(np.mean([m["angle_to_mean_median_deg"] for m in metrics.values()]))
+
+
+def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
+    """Accuracy against MACs and against training time, Pareto fronts and references drawn."""
     done = [r for r in rows if r.get("deg") is not None]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for ax, key, label in ((axes[0], "macs", "MACs per sample (both fingers)"),
-                           (axes[1], "train_s_per_epoch", "training s per epoch (2 CPU cores)")):
+                           (axes[1], "train_min", "training time (wall min, shared machine)")):
         xs, ys = [r[key] for r in done], [r["deg"] for r in done]
         ax.scatter(xs, ys)
         for r in done:
-            ax.annotate(r["model"], (r[key], r["deg"]), fontsize=7, xytext=(3, 3),
-                        textcoords="offset points")
+            ax.annotate(f"{r['model']} ({r['view']})", (r[key], r["deg"]), fontsize=7,
+                        xytext=(3, 3), textcoords="offset points")
+        for ref, style in zip(refs, (":", "--", "-."), strict=False):
+            deg = _mean_deg(ref["metrics"])
+            ax.axhline(deg, color="grey", ls=style, lw=1, label=f"{ref['label']}: {deg:.2f}")
         front = pareto(xs, ys)
         ax.plot([xs[i] for i in front], [ys[i] for i in front], "r--", lw=1, label="Pareto front")
-        ax.set_xscale("log")
+        ax.set_yscale("log")
         ax.set_xlabel(label)
-        ax.set_ylabel("median angle to cone mean, test (deg, mean of fingers)")
+        ax.set_ylabel("test: median angle to cone mean (deg, mean of fingers)", fontsize=8)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
@@ -119,7 +134,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", required=True, type=Path)
     p.add_argument("--data", type=Path, help="dataset (default: generated into <out>/data)")
     p.add_argument("--n", type=int, default=3000)
-    p.add_argument("--models", nargs="+", default=list(MODELS))
+    p.add_argument("--models", nargs="+", default=list(MODELS),
+                   help="backbones trained on the pinch view (the default recipe)")
+    p.add_argument("--tip-models", nargs="*", default=["tipnet"],
+                   help="models also trained on the tip view (tipnet: the previous default)")
     p.add_argument("--epochs", type=int, help="epochs per model (default: the recipe's)")
     p.add_argument("--budget-min", type=float, default=30.0,
                    help="train only models whose estimated training time is below this")
@@ -129,39 +147,60 @@ def main(argv: list[str] | None = None) -> int:
     base = protocol_cfg("default", str(data), "")
     epochs = args.epochs or base.epochs
     n_train = len(open_dataset(data).rows("train"))
+    refs = [*reference_entries(data), mean_entry(data)]
+    plan = [(name, base.variant) for name in args.models] + [(n, "tip") for n in args.tip_models]
     rows = []
-    for name in args.models:
-        r = {"model": name, **_timings(name, epochs, base.batch_size, n_train)}
-        label = f"{name} tip view e{epochs}"
+    for name, view in plan:
+        r = {"model": name, "view": view,
+             **_timings(name, view, epochs, base.batch_size, n_train)}
+        label = f"{name} {view} view e{epochs}"
         trained = (args.out / "runs" / slug(label) / "metrics.csv").exists()
         if r["est_train_min"] <= args.budget_min or trained:
             e = run_entry(data, args.out, label, "default", not args.quiet, model=name,
-                          epochs=epochs)
+                          variant=view, epochs=epochs)
             m = e["metrics"]
-            r |= {"deg": float(np.mean([m[f]["angle_to_mean_median_deg"] for f in m])),
+            r |= {"deg": _mean_deg(m),
                   "index_deg": m["index"]["angle_to_mean_median_deg"],
                   "thumb_deg": m["thumb"]["angle_to_mean_median_deg"],
                   "in_cone": float(np.mean([m[f]["in_cone_pct"] for f in m])),
                   "correct_y": float(np.mean([m[f]["correct_y_pct"] for f in m])),
-                  "train_s_per_epoch": e["train_s_per_epoch"], "train_min": e["train_s"] / 60}
+                  "train_s_per_epoch": e["train_s_per_epoch"], "train_min": e["train_s"] / 60,
+                  "train_cpu_s": e["train_cpu_s"], "epochs": e["epochs"],
+                  "best_epoch": e["best_epoch"]}
         else:
-            print(f"== {name}: estimated {r['est_train_min']:.0f} min > budget, not trained",
-                  flush=True)
+            print(f"== {name} ({view}): estimated {r['est_train_min']:.0f} min > budget, "
+                  "not trained", flush=True)
         rows.append(r)
-    head = ["model", "input px", "params", "MACs/sample", "infer ms/sample", "train s/epoch",
-            "train min", "° index", "° thumb", "% in cone", "% correct y"]
+        report(rows, refs, args.out, data, epochs)  # after every model: a stopped run keeps it
+    return 0
+
+
+def report(rows: list[dict], refs: list[dict], out: Path, data: Path, epochs: int) -> None:
+    """Table, JSON and plot of the models so far."""
+    head = ["model", "view", "input px", "params", "MACs/sample", "infer ms/sample",
+            "train s/epoch", "train min", "train CPU s", "best epoch", "° index", "° thumb",
+            "% in cone (mean of fingers)", "% correct y (mean of fingers)"]
     lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
     for r in rows:
         lines.append("| " + " | ".join([
-            r["model"], str(r["input_size"]), fmt(r["params"]), f"{r['macs'] / 1e6:.1f} M",
-            fmt(r["infer_ms"]), fmt(r.get("train_s_per_epoch")),
+            r["model"], r["view"], str(r["input_size"]), fmt(r["params"]),
+            f"{r['macs'] / 1e6:.1f} M", fmt(r["infer_ms"]), fmt(r.get("train_s_per_epoch")),
             fmt(r.get("train_min", r["est_train_min"])) + ("" if "deg" in r else " (est.)"),
+            fmt(r.get("train_cpu_s")),
+            f"{r['best_epoch']}/{r['epochs']}" if "deg" in r else "-",
             fmt(r.get("index_deg")), fmt(r.get("thumb_deg")), fmt(r.get("in_cone")),
             fmt(r.get("correct_y"))]) + " |")
-    plot(rows, args.out / "model_zoo.png")
-    save(args.out, "model_zoo", {"dataset": str(data), "machine": machine(), "epochs": epochs,
-                                 "rows": rows}, "\n".join(lines))
-    return 0
+    for ref in refs:
+        m = ref["metrics"]
+        lines.append("| " + " | ".join([
+            ref["label"], "-", "-", "-", "-", "-", "-", "-", "-", "-",
+            fmt(m["index"]["angle_to_mean_median_deg"]),
+            fmt(m["thumb"]["angle_to_mean_median_deg"]),
+            fmt(float(np.mean([m[f]["in_cone_pct"] for f in m]))),
+            fmt(float(np.mean([m[f]["correct_y_pct"] for f in m])))]) + " |")
+    plot(rows, refs, out / "model_zoo.png")
+    save(out, "model_zoo", {"dataset": str(data), "machine": machine(), "epochs": epochs,
+                            "rows": rows, "references": refs}, "\n".join(lines))
 
 
 if __name__ == "__main__":
