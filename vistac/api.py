@@ -171,7 +171,8 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
             baseline: ``EvaluateCfg(baseline="geometric", data=D, out=O)``).
         progress: Progress bars on stderr.
         **options: Fields of `EvaluateCfg` when `target` is a run: ``split`` ("test"),
-            ``tta``, ``checkpoint``, ``data``, ``out``, ``no_plots``, ``device``,
+            ``tta`` / ``no_tta`` (default: as the run's recipe says), ``checkpoint``,
+            ``data``, ``out``, ``no_plots``, ``device``,
             ``cross_dataset``.
 
     Returns:
@@ -214,7 +215,7 @@ def _score(cfg: EvaluateCfg, out: Path, progress: bool) -> dict:
                                 not cfg.no_plots, progress=progress,
                                 max_missing_pct=cfg.max_missing_pct, baseline=cfg.baseline)
     else:
-        res = evaluate_run(cfg.run, cfg.data, cfg.split, cfg.tta, cfg.checkpoint, out,
+        res = evaluate_run(cfg.run, cfg.data, cfg.split, cfg.run_tta, cfg.checkpoint, out,
                            not cfg.no_plots, cfg.device, progress=progress,
                            cross_dataset=cfg.cross_dataset, max_missing_pct=cfg.max_missing_pct,
                            references=not cfg.no_references)

@@ -92,6 +92,29 @@ def test_default_training_beats_a_mean_predictor(generated, tmp_path):
         assert res["metrics"][f]["correct_y_pct"] > const["correct_y_pct"]
 
 
+def test_the_recipe_says_whether_evaluation_averages_the_mirrored_view(generated, tmp_path):
+    """The default recipe is evaluated with its mirrored view averaged in (`TrainCfg.tta`);
+    --no-tta turns it off, --tta on for a run whose recipe has it off, a run written before
+    the setting existed is evaluated as it was (without), and both switches at once are
+    refused."""
+    import vistac
+
+    run = train(protocol_cfg("default", str(generated), str(tmp_path / "run"), epochs=1,
+                             batch_size=16, device="cpu"), progress=False)
+    on = evaluate_run(run, split="test", make_plots=False, references=False)
+    off = vistac.evaluate(run, no_tta=True, no_plots=True, no_references=True).result
+    assert on["tta"] and not off["tta"]
+    assert on["metrics"]["index"] != off["metrics"]["index"]  # the mirror changes the scores
+    assert vistac.evaluate(run, tta=True, no_plots=True,
+                           no_references=True).metrics == on["metrics"]
+    with pytest.raises(UserError, match="--tta or --no-tta"):
+        vistac.evaluate(run, tta=True, no_tta=True)
+    meta = json.loads((run / "config.json").read_text())
+    del meta["train"]["tta"]  # a run of an earlier version
+    (run / "config.json").write_text(json.dumps(meta))
+    assert not evaluate_run(run, split="test", make_plots=False, references=False)["tta"]
+
+
 def test_init_loads_the_weights_it_names(generated, tmp_path):
     """A run started from another run's weights begins where that one ended: its first-epoch
     loss is far below the same run's from scratch."""

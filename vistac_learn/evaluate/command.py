@@ -26,7 +26,10 @@ class EvaluateCfg(Config):
     data: str | None = param(None, help="dataset (default: the run's; required with --baseline)")
     split: str = param("test", choices=("train", "val", "test"), help="split to score")
     tta: bool = param(False, help="test-time augmentation: average each configuration's "
-                      "rotations and its mirrored view")
+                      "rotations and its mirrored view (default: as the run's recipe says, "
+                      "on for the default recipe; always with --baseline)")
+    no_tta: bool = param(False, help="run only: no test-time augmentation, whatever the run's "
+                         "recipe says")
     checkpoint: Literal["best", "last"] = param("best", help="the run's checkpoint")
     out: str | None = param(None, help="output folder (default <run>/eval/<split>[-tta], with "
                             "--baseline <data>/eval/<baseline>-<split>)")
@@ -47,6 +50,8 @@ class EvaluateCfg(Config):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        if self.tta and self.no_tta:
+            raise ConfigError("tta", "give either --tta or --no-tta, not both")
         if self.baseline and self.run:
             raise ConfigError("baseline", "give either --run or --baseline, not both")
         if self.baseline and not self.data:
@@ -55,6 +60,11 @@ class EvaluateCfg(Config):
             raise ConfigError("run", "required (or --baseline geometric|pinch --data D)")
         if self.run and not (Path(self.run) / "config.json").is_file():
             raise ConfigError("run", f"{self.run} is not a run folder (no config.json)")
+
+    @property
+    def run_tta(self) -> bool | None:
+        """A run's test-time augmentation: on, off, or None (as its recipe says)."""
+        return True if self.tta else (False if self.no_tta else None)
 
     @property
     def out_dir(self) -> Path:

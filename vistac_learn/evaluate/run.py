@@ -154,7 +154,7 @@ def evaluate_run(
     run: str | Path,
     data: str | Path | None = None,
     split: str = "test",
-    tta: bool = False,
+    tta: bool | None = None,
     checkpoint: str = "best",
     out: str | Path | None = None,
     make_plots: bool = True,
@@ -171,7 +171,8 @@ def evaluate_run(
         data: Dataset to score on (default: the run's training dataset).
         split: Split to score.
         tta: Test-time augmentation: average each configuration's rotations (study views) and
-            its mirrored view (r_y of the mirror negated).
+            its mirrored view (r_y of the mirror negated); None: as the run's recipe says
+            (`TrainCfg.tta`: on for the default recipe, off for the study's protocol).
         checkpoint: ``best`` (validation-selected) or ``last``.
         out: Output folder (default ``<run>/eval/<split>[-tta]``).
         make_plots: Write the PNG figures.
@@ -190,6 +191,7 @@ def evaluate_run(
         UserError: a damaged run or dataset, too many fingertips not found.
     """
     cfg, meta = load_run(run)
+    tta = cfg.tta if tta is None else tta
     dev = resolve_device(device or cfg.device)
     tables = run_dataset(meta, data, cross_dataset)
     cfg = dataclasses.replace(cfg, data=str(tables.root))

@@ -68,7 +68,7 @@ class TrainCfg(Config):
                          "previous default) or one of the study's image variants")
     finger: str = param("both", choices=FINGER_CHOICES,
                         help="finger(s) whose labels are the target (2 outputs per finger)")
-    epochs: int = param(15, ge=1, le=100_000, help="epochs to train")
+    epochs: int = param(25, ge=1, le=100_000, help="epochs to train")
     batch_size: int = param(32, ge=1, le=65_536, help="samples per optimiser step")
     optimizer: str = param("adamw", choices=OPTIMIZERS, help="optimiser")
     lr: float = param(3e-3, gt=0, le=1e6, help="learning rate (the peak of a one-cycle schedule)")
@@ -86,6 +86,9 @@ class TrainCfg(Config):
     mirror: bool = param(True, help="mirror half of the training samples (r_y -> -r_y)")
     jitter: float = param(1.0, ge=0, le=10, help="tip and pinch views: crop jitter as a "
                           "multiple of the default (0.1 radius, 2 deg, 5 %%); 0 switches it off")
+    tta: bool = param(True, help="the recipe's test-time augmentation: `vistac evaluate` "
+                      "averages each configuration's mirrored view (and rotations) unless told "
+                      "otherwise (--tta / --no-tta there)")
     appearance: float = param(0.0, ge=0, le=1, help="share of training images perturbed toward "
                               "photographs (textures, overlay style, light, tilt, camera); 0: "
                               "off")
@@ -189,7 +192,7 @@ def selectable_metrics() -> tuple[str, ...]:
 STUDY = {"model": "schoeconv100-v3-fc160", "variant": "edge-index", "finger": "index",
          "epochs": 20, "batch_size": 5, "optimizer": "adam", "lr": 1e-4, "weight_decay": 1e-5,
          "schedule": "constant", "rotations": "fixed", "n_rotations": 20, "rotation_step": 18.0,
-         "mirror": False, "jitter": 0.0, "select": "error_median_pct"}
+         "mirror": False, "jitter": 0.0, "select": "error_median_pct", "tta": False}
 PROTOCOLS = {"default": {}, "study": STUDY}
 
 

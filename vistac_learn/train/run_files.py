@@ -63,8 +63,10 @@ def run_settings(run: Path, meta: dict, fix: str) -> TrainCfg:
     from vistac_learn.train.config import TrainCfg
 
     known = {f.name for f in dataclasses.fields(TrainCfg)}
+    # a run written before the recipe had test-time augmentation was evaluated without it
+    settings = {"tta": False, **meta["train"]}
     try:
-        return TrainCfg(**{k: v for k, v in meta["train"].items() if k in known})
+        return TrainCfg(**{k: v for k, v in settings.items() if k in known})
     except (UserError, TypeError, ValueError) as exc:
         raise UserError(f"{Path(run) / CONFIG}: its train settings are not valid ({exc}); "
                         f"{fix}") from None
