@@ -62,7 +62,7 @@ from matplotlib.ticker import ScalarFormatter  # noqa: E402
 
 from vistac.dataset import open_dataset  # noqa: E402
 from vistac_learn.train.config import TrainCfg  # noqa: E402
-from vistac_learn.train.loop import finished  # noqa: E402
+from vistac_learn.train.run_folder import finished  # noqa: E402
 
 RECIPES = (("default (pinchnet, pinch view)", {}),
            ("previous default (tipnet, tip view)", {"model": "tipnet", "variant": "tip"}))
@@ -205,8 +205,11 @@ def main(argv: list[str] | None = None) -> int:
             if args.no_train and not finished(args.out / "runs" / slug(label), epochs):
                 missing.append(f"{label} ({epochs} epochs)")
                 continue
+            # scored on the plain view (tta=False), as the curve's first runs were, so that
+            # every point is measured alike
             e = run_entry(data, args.out, label, "default", not args.quiet,
-                          finger="both", train_fraction=frac, epochs=epochs, **kwargs[name])
+                          finger="both", train_fraction=frac, epochs=epochs, tta=False,
+                          **kwargs[name])
             m = e["metrics"]
             n_train = e["n_train"]
             rows.append({
