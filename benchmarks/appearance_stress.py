@@ -69,7 +69,7 @@ from learnbench import ensure_dataset, headline_data, machine, run_entry, save, 
 
 from vistac.dataset import FINGERS, DatasetTables, open_dataset  # noqa: E402
 from vistac.errors import UserError  # noqa: E402
-from vistac_learn.data.fingertips import located_in  # noqa: E402
+from vistac_learn.data.fingertip_table import located_in  # noqa: E402
 from vistac_learn.data.perturb import PERTURBATIONS, Scene, perturb, segment  # noqa: E402
 from vistac_learn.data.samples import SampleSet  # noqa: E402
 from vistac_learn.data.tip_coverage import MAX_MISSING_PCT  # noqa: E402

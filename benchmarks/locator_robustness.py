@@ -36,6 +36,7 @@ from learnbench import ensure_dataset, headline_data, machine, save  # noqa: E40
 
 from vistac.dataset import FINGERS, open_dataset  # noqa: E402
 from vistac.dataset.splits import SplitCfg  # noqa: E402
+from vistac_learn.data.fingertip_table import simulator_tips  # noqa: E402
 from vistac_learn.data.fingertips import (  # noqa: E402
     LOCATOR_VERSION,
     LocatorCfg,
@@ -43,7 +44,6 @@ from vistac_learn.data.fingertips import (  # noqa: E402
     combine,
     learned_fingertips,
     locate_fingertips,
-    simulator_tips,
 )
 from vistac_learn.data.perturb import (  # noqa: E402
     PERTURBATIONS,

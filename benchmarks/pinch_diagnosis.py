@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from vistac.dataset import FINGERS, open_dataset
-from vistac_learn.data.fingertips import fingertip_table
+from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.data.loading import loader
 from vistac_learn.evaluate.run import RETRAIN
 from vistac_learn.metrics.scoring import score

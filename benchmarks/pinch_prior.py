@@ -31,7 +31,7 @@ import torch
 
 from vistac.dataset import FINGERS, open_dataset, unit_labels
 from vistac.dataset.schema import clean_force_columns
-from vistac_learn.data.fingertips import fingertip_table
+from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.data.loading import loader
 from vistac_learn.data.samples import SampleSet
 from vistac_learn.data.views import TipCfg, make_view

@@ -159,7 +159,7 @@ def cache(change: Callable[[Path], None]) -> Callable:
     """A dataset copy whose fingertip cache is located, then damaged."""
     def damage(env, case_dir: Path, out: Path) -> dict:
         from vistac.dataset import open_dataset
-        from vistac_learn.data.fingertips import fingertip_table
+        from vistac_learn.data.fingertip_table import fingertip_table
 
         data = _data_copy(env, case_dir)
         fingertip_table(open_dataset(data))

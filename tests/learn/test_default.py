@@ -20,7 +20,7 @@ import torch
 from vistac.cli import main
 from vistac.dataset import open_dataset
 from vistac.errors import UserError
-from vistac_learn.data.fingertips import fingertip_table
+from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.evaluate.run import evaluate_run
 from vistac_learn.metrics import cone_metrics
 from vistac_learn.models.tipnet import apply_model

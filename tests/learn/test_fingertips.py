@@ -7,15 +7,13 @@ import numpy as np
 import pytest
 
 from vistac.dataset import FINGERS, open_dataset
+from vistac_learn.data.fingertip_table import fingertip_table, located_in, simulator_tips
 from vistac_learn.data.fingertips import (
     Fingertip,
     LocatorCfg,
     colour_mask,
     finger_masks,
-    fingertip_table,
     locate_fingertips,
-    located_in,
-    simulator_tips,
 )
 from vistac_learn.data.perturb import (
     PERTURBATIONS,
@@ -143,12 +141,13 @@ def test_a_background_of_the_fingers_colour_is_reported():
 
 
 def test_the_cache_key_follows_the_locator_version(small_dataset, tmp_path, monkeypatch):
+    import vistac_learn.data.fingertip_table as tip_table
     import vistac_learn.data.fingertips as fingertips
 
     t = open_dataset(small_dataset)
-    before = fingertips._cache_path(t, LocatorCfg(), tmp_path)
+    before = tip_table._cache_path(t, LocatorCfg(), tmp_path)
     monkeypatch.setattr(fingertips, "LOCATOR_VERSION", fingertips.LOCATOR_VERSION + 1)
-    assert fingertips._cache_path(t, LocatorCfg(), tmp_path) != before
+    assert tip_table._cache_path(t, LocatorCfg(), tmp_path) != before
 
 
 def test_located_in_serves_given_images(small_dataset):

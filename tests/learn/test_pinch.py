@@ -19,7 +19,8 @@ import torch
 from tests.learn_fixtures import make_dataset
 from vistac.dataset import FINGERS, open_dataset
 from vistac_learn.data.contacts import contact_truth
-from vistac_learn.data.fingertips import Fingertip, fingertip_table
+from vistac_learn.data.fingertip_table import fingertip_table
+from vistac_learn.data.fingertips import Fingertip
 from vistac_learn.data.pinch_view import PinchView, contact_targets, pinch_features
 from vistac_learn.data.views import Aug, SampleInfo, TipCfg, mirror_labels
 from vistac_learn.evaluate.geometric import sensor_direction

@@ -10,7 +10,7 @@ from learn_fixtures import make_dataset
 
 from vistac.dataset import open_dataset
 from vistac.errors import UserError
-from vistac_learn.data.fingertips import fingertip_table
+from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.data.loading import EpochBatches, loader
 from vistac_learn.data.samples import AugmentCfg, RotationCfg, SampleSet, collate, fingers_of
 from vistac_learn.data.views import SIDE_FEATURES, Aug, make_view, mirror_labels, tip_crop

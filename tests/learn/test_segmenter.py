@@ -9,6 +9,7 @@ import torch
 
 from vistac.dataset import FINGERS, open_dataset
 from vistac.errors import UserError
+from vistac_learn.data.fingertip_table import simulator_tips
 from vistac_learn.data.fingertips import (
     Fingertip,
     LocatorCfg,
@@ -16,7 +17,6 @@ from vistac_learn.data.fingertips import (
     combine,
     learned_fingertips,
     locate_fingertips,
-    simulator_tips,
 )
 from vistac_learn.data.perturb import (
     FINGER_LABEL,

@@ -40,7 +40,8 @@ from vistac.config import Config, param
 from vistac.dataset import FINGERS, DatasetTables
 from vistac.errors import UserError
 from vistac_learn.data.contacts import contact_truth
-from vistac_learn.data.fingertips import Fingertip, FingertipTable, read_rgb
+from vistac_learn.data.fingertip_table import FingertipTable
+from vistac_learn.data.fingertips import Fingertip, read_rgb
 from vistac_learn.data.perturb import (
     Scene,
     map_direction,

@@ -18,7 +18,7 @@ import numpy as np
 from vistac.dataset import DatasetTables
 from vistac.dataset.schema import CONFIGS
 from vistac.errors import UserError
-from vistac_learn.data.fingertips import FingertipTable
+from vistac_learn.data.fingertip_table import FingertipTable
 
 MAX_MISSING_PCT = 1.0
 """Default largest share (%) of a split's configurations whose fingertips were not found."""

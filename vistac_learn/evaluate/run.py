@@ -29,7 +29,7 @@ import torch
 from vistac.dataset import open_dataset
 from vistac.dataset.files import atomic_write_bytes
 from vistac.errors import UserError
-from vistac_learn.data.fingertips import fingertip_table
+from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.data.samples import RotationCfg, fingers_of
 from vistac_learn.data.tip_coverage import MAX_MISSING_PCT, tip_coverage
 from vistac_learn.evaluate import plots

@@ -30,7 +30,7 @@ from vistac.config import Config, ConfigError, param
 from vistac.dataset import DatasetTables, read_manifest
 from vistac.dataset.files import check_out_dir
 from vistac.errors import UserError
-from vistac_learn.data.fingertips import FingertipTable
+from vistac_learn.data.fingertip_table import FingertipTable
 from vistac_learn.data.samples import (
     FINGER_CHOICES,
     ROTATION_MODES,
@@ -312,7 +312,7 @@ def check_data(cfg: TrainCfg, progress: bool = False) -> list[str]:
         UserError: a damaged dataset, a split above ``cfg.max_missing_pct``.
     """
     from vistac.dataset import open_dataset
-    from vistac_learn.data.fingertips import fingertip_table
+    from vistac_learn.data.fingertip_table import fingertip_table
 
     if not build_view(cfg).needs_tips:
         return []

@@ -51,7 +51,7 @@ from vistac.dataset import open_dataset
 from vistac.dataset.files import remove_stale_temporaries
 from vistac.errors import UserError
 from vistac.folder_lock import hold
-from vistac_learn.data.fingertips import fingertip_table
+from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.data.loading import loader
 from vistac_learn.data.samples import SampleSet, fingers_of
 from vistac_learn.metrics.scoring import predict, score_predictions

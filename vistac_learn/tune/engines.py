@@ -71,6 +71,6 @@ def warm_fingertip_cache(base: TrainCfg, progress: bool = False) -> None:
     if not build_view(base).needs_tips:
         return
     from vistac.dataset import open_dataset
-    from vistac_learn.data.fingertips import fingertip_table
+    from vistac_learn.data.fingertip_table import fingertip_table
 
     fingertip_table(open_dataset(base.data), cache_dir=base.cache_dir, progress=progress)

@@ -1,0 +1,178 @@
+"""A dataset's located fingertips, cached (`fingertip_table`, `FingertipTable`), those of some
+given images (`located_in`), and the simulator's own tips in image coordinates
+(`simulator_tips`) to compare them with. The locating itself is `vistac_learn.data.fingertips`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from tqdm import tqdm
+
+from vistac.dataset import FINGERS, DatasetTables
+from vistac.dataset.files import remove_stale_temporaries, write_table
+from vistac.errors import UserError
+from vistac_learn.data import fingertips
+from vistac_learn.data.fingertips import FIELDS, Fingertip, LocatorCfg, locate_fingertips
+from vistac_learn.data.variants import read_rgb
+
+
+def simulator_tips(tables: DatasetTables, row: int, size: int
+                   ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The simulator's fingertip centre (pixels) and unit finger axis (image u, v) of each finger
+    of a configuration, from ``configs.parquet`` (what the locator is measured against).
+
+    A perspective camera (``camera_fovy_deg`` > 0, the ``photo`` preset) projects the fingertip
+    at the hand's height above the table (`vistac_sim.render.shot.Shot.project`); the clean
+    orthographic view scales the table-plane position.
+
+    Args:
+        tables: The dataset.
+        row: Configuration row.
+        size: Side of the (square) image in pixels.
+    """
+    c = tables.configs.iloc[row]
+    if float(c.get("camera_fovy_deg", 0.0) or 0.0) > 0:
+        return _perspective_tips(tables, c, size)
+    ppm = c["px_per_m"]
+    out = {}
+    for f in FINGERS:
+        tip = np.array([(c[f"tip_{f}_x"] - c["camera_x"]) * ppm + size / 2,
+                        -(c[f"tip_{f}_y"] - c["camera_y"]) * ppm + size / 2])
+        axis = np.array([c[f"approach_{f}_x"], -c[f"approach_{f}_y"]], float)
+        out[f] = (tip, axis / np.linalg.norm(axis))
+    return out
+
+
+def _perspective_tips(tables: DatasetTables, c: pd.Series, size: int
+                      ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """`simulator_tips` of a configuration seen by a perspective camera."""
+    from vistac_sim.render.shot import CameraPose, Shot
+
+    height = float(((tables.manifest.get("config") or {}).get("hand") or {}).get("height", 0.0))
+    cam = CameraPose(center=(float(c["camera_x"]), float(c["camera_y"])),
+                     tilt=np.radians(float(c["camera_tilt_deg"])),
+                     tilt_azimuth=np.radians(float(c["camera_tilt_azimuth_deg"])),
+                     roll=np.radians(float(c["camera_roll_deg"])),
+                     fovy=np.radians(float(c["camera_fovy_deg"])))
+    view = Shot(size, size / float(c["px_per_m"]), tables.table_rgb, camera=cam)
+    out = {}
+    for f in FINGERS:
+        tip = np.array([c[f"tip_{f}_x"], c[f"tip_{f}_y"], height])
+        step = np.array([c[f"approach_{f}_x"], c[f"approach_{f}_y"], 0.0])
+        uv = view.project(np.stack([tip, tip + 1e-3 * step / np.linalg.norm(step)]))
+        axis = uv[1] - uv[0]
+        out[f] = (uv[0], axis / np.linalg.norm(axis))
+    return out
+
+
+class FingertipTable:
+    """The located fingertips of every configuration of a dataset (one row per configuration).
+
+    Columns: ``<finger>_<field>`` for `FIELDS`, ``<finger>_ok`` and ``<finger>_reason``.
+    """
+
+    def __init__(self, frame: pd.DataFrame):
+        self.frame = frame
+
+    def get(self, row: int, finger: str) -> Fingertip:
+        """The fingertip of one configuration row."""
+        fr = self.frame
+        if not bool(fr[f"{finger}_ok"].iat[row]):
+            return Fingertip.missing(str(fr[f"{finger}_reason"].iat[row]))
+        v = [float(fr[f"{finger}_{k}"].iat[row]) for k in FIELDS]
+        return Fingertip(np.array(v[:2]), np.array(v[2:4]), v[4])
+
+    def failures(self, rows: np.ndarray, finger: str) -> int:
+        """Configurations among `rows` whose finger was not found."""
+        return int((~self.frame[f"{finger}_ok"].to_numpy()[rows]).sum())
+
+
+def _record(config_id: int, found: dict[str, Fingertip]) -> dict:
+    """One row of a fingertip table."""
+    rec = {"config_id": config_id}
+    for f in FINGERS:
+        t = found[f]
+        rec |= dict(zip((f"{f}_{k}" for k in FIELDS), (*t.tip, *t.axis, t.radius), strict=True))
+        rec |= {f"{f}_ok": t.ok, f"{f}_reason": t.reason}
+    return rec
+
+
+def located_in(tables: DatasetTables, rows: np.ndarray, images: list[np.ndarray],
+               cfg: LocatorCfg | None = None) -> FingertipTable:
+    """A fingertip table (not cached) of the given images of some rows, e.g. perturbed copies;
+    the dataset's other rows are marked not found."""
+    colours = {f: tables.finger_rgb(f) for f in FINGERS}
+    cfg = cfg or LocatorCfg()
+    by_row = {int(r): img for r, img in zip(rows, images, strict=True)}
+    missing = {f: Fingertip.missing("not among the located images") for f in FINGERS}
+    cids = tables.configs["config_id"].to_numpy()
+    recs = [_record(int(cids[r]), locate_fingertips(by_row[r], colours, cfg) if r in by_row
+                    else missing) for r in range(len(tables.configs))]
+    return FingertipTable(pd.DataFrame(recs))
+
+
+def _cache_path(tables: DatasetTables, cfg: LocatorCfg, cache_dir: Path | None) -> Path:
+    h = hashlib.sha256()
+    h.update(json.dumps({"v": fingertips.LOCATOR_VERSION, **asdict(cfg)}, sort_keys=True).encode())
+    if cfg.segmenter != "off":
+        from vistac_learn.data.segmenter import weights_digest
+
+        h.update(weights_digest().encode())  # retrained weights locate anew
+    h.update(tables.image_fingerprint().encode())  # labels do not move a fingertip
+    folder = cache_dir if cache_dir is not None else tables.root / "cache"
+    return Path(folder) / f"fingertips-{h.hexdigest()[:20]}.parquet"
+
+
+def _read_cache(path: Path, tables: DatasetTables) -> FingertipTable | None:
+    """The cached table at `path`, or None when absent or damaged (truncated, other columns,
+    other configurations): a damaged cache is located again and rewritten, never an error."""
+    if not path.is_file():
+        return None
+    try:
+        frame = pd.read_parquet(path)
+        cols = ["config_id", *(f"{f}_{k}" for f in FINGERS for k in (*FIELDS, "ok", "reason"))]
+        ids = frame["config_id"].to_numpy()
+        if not all(c in frame for c in cols) or len(frame) != len(tables.configs) \
+                or not (ids == tables.configs["config_id"].to_numpy()).all() \
+                or not all(frame[f"{f}_ok"].dtype == bool for f in FINGERS):
+            return None
+    except Exception:  # a damaged file: pyarrow's errors have no common base
+        return None
+    return FingertipTable(frame)
+
+
+def fingertip_table(tables: DatasetTables, cfg: LocatorCfg = LocatorCfg(),
+                    cache_dir: str | Path | None = None, progress: bool = False
+                    ) -> FingertipTable:
+    """The fingertips of every configuration, located once and cached as a small Parquet table.
+
+    The table grows by one row per configuration (about 100 bytes), whatever the image size.
+
+    Raises:
+        UserError: An unreadable image or an unwritable cache folder.
+    """
+    path = _cache_path(tables, cfg, Path(cache_dir) if cache_dir is not None else None)
+    cached = _read_cache(path, tables)
+    if cached is not None:
+        return cached
+    colours = {f: tables.finger_rgb(f) for f in FINGERS}
+    rows = []
+    for row in tqdm(range(len(tables.configs)), desc="locating fingertips", unit="img",
+                    disable=not progress, leave=False):
+        found = locate_fingertips(read_rgb(tables.image_path(row)), colours, cfg)
+        rows.append(_record(int(tables.configs["config_id"].iat[row]), found))
+    frame = pd.DataFrame(rows)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        remove_stale_temporaries(path.parent)  # what a killed run left
+        write_table(path, frame)
+    except OSError as exc:
+        raise UserError(f"{path.parent}: cannot write the fingertip cache ({exc}); "
+                        "choose another with --cache-dir") from exc
+    return FingertipTable(frame)
