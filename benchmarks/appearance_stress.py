@@ -78,7 +78,7 @@ from vistac_learn.evaluate.geometric import GeometricCfg, predict_image  # noqa:
 from vistac_learn.evaluate.pinch import PinchCfg, dataset_friction  # noqa: E402
 from vistac_learn.evaluate.pinch import predict_image as pinch_image  # noqa: E402
 from vistac_learn.evaluate.run import load_model, load_run  # noqa: E402
-from vistac_learn.metrics.scoring import predict, score  # noqa: E402
+from vistac_learn.metrics.scoring import predict, predict_mirror_averaged, score  # noqa: E402
 from vistac_learn.train.config import build_view, input_size, resolve_device  # noqa: E402
 
 # A predictor maps (dataset, rows, their images) to (len(rows), 4) predictions, index then
@@ -87,7 +87,9 @@ Predictor = Callable[[DatasetTables, np.ndarray, list[np.ndarray]], tuple[np.nda
 
 
 def run_predictor(run: Path) -> Predictor:
-    """A trained run (both fingers) that finds its fingertips in the images it is given."""
+    """A trained run (both fingers) that finds its fingertips in the images it is given,
+    scored as `vistac evaluate` scores it (with its mirrored view averaged in when the run's
+    recipe says so, `TrainCfg.tta`)."""
     cfg, _ = load_run(run)
     if cfg.finger != "both":
         raise UserError(f"{run}: trained on --finger {cfg.finger}; the stress test needs both")
@@ -99,9 +101,14 @@ def run_predictor(run: Path) -> Predictor:
     def predict_rows(tables, rows, images):
         by_row = dict(zip((int(r) for r in rows), images, strict=True))
         tips = located_in(tables, rows, images) if view.needs_tips else None
-        ds = SampleSet(tables, rows, view, size, FINGERS, "mean", cfg.seed, cfg.rotation_cfg(),
-                       None, tips, images=lambda r: by_row[int(r)])
-        pred = predict(model, ds, dev, cfg.eval_batch_size)
+        def samples(mirror: bool) -> SampleSet:
+            return SampleSet(tables, rows, view, size, FINGERS, "mean", cfg.seed,
+                             cfg.rotation_cfg(), None, tips, images=lambda r: by_row[int(r)],
+                             mirror=mirror)
+
+        # the recipe's test-time augmentation, as `vistac evaluate` applies it
+        pred = predict_mirror_averaged(model, samples, dev, cfg.eval_batch_size) if cfg.tta \
+            else predict(model, samples(False), dev, cfg.eval_batch_size)
         lost = sum(tips.failures(rows, f) for f in FINGERS) if tips is not None else 0
         return pred, lost
 

@@ -37,7 +37,13 @@ from vistac_learn.evaluate.geometric import GeometricCfg, baseline_predictions
 from vistac_learn.evaluate.pinch import PinchCfg, pinch_predictions
 from vistac_learn.evaluate.references import has_clean_forces, noise_floor, reference_entries
 from vistac_learn.evaluate.references import references as reference_scores
-from vistac_learn.metrics.scoring import average_over_rotations, format_table, predict, score
+from vistac_learn.metrics.scoring import (
+    average_over_rotations,
+    format_table,
+    predict,
+    predict_mirror_averaged,
+    score,
+)
 from vistac_learn.train.checkpoints import load_checkpoint, load_weights
 from vistac_learn.train.config import (
     TrainCfg,
@@ -205,12 +211,12 @@ def evaluate_run(
         coverage.check(max_missing_pct)
     ds = build_samples(cfg, tables, split, size, tips)
     t0 = time.perf_counter()
-    pred = predict(model, ds, dev, cfg.eval_batch_size)
     if tta:
-        mirrored = predict(model, build_samples(cfg, tables, split, size, tips, mirror=True),
-                           dev, cfg.eval_batch_size)
-        mirrored[:, 0::2] *= -1
-        pred = 0.5 * (pred + mirrored)
+        pred = predict_mirror_averaged(
+            model, lambda mirror: build_samples(cfg, tables, split, size, tips, mirror=mirror)
+            if mirror else ds, dev, cfg.eval_batch_size)
+    else:
+        pred = predict(model, ds, dev, cfg.eval_batch_size)
     elapsed = time.perf_counter() - t0
     item_row, item_rot = ds.item_row, ds.item_rot
     if tta:

@@ -53,6 +53,16 @@ def predict(model: torch.nn.Module, ds, device: torch.device | str, batch_size: 
     return np.concatenate(out)
 
 
+def predict_mirror_averaged(model: torch.nn.Module, samples, device: torch.device | str,
+                            batch_size: int = 64) -> np.ndarray:
+    """The recipe's test-time augmentation: `predict` on ``samples(False)`` averaged with
+    `predict` on the mirrored view ``samples(True)`` (whose r_y is negated back first)."""
+    pred = predict(model, samples(False), device, batch_size)
+    mirrored = predict(model, samples(True), device, batch_size)
+    mirrored[:, 0::2] *= -1
+    return 0.5 * (pred + mirrored)
+
+
 def score(
     pred: np.ndarray,
     tables,
