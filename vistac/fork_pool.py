@@ -95,6 +95,20 @@ class ForkServer:
         """
         return PoolRunner(self, _Apply(fn), 1).map([args])[0]
 
+    def _death(self) -> str:
+        """Why the server is gone, for `WorkerDied`."""
+        process = self._process
+        if process is not None:
+            process.join(5)
+        code = getattr(process, "exitcode", None)
+        msg = "the fork server of the workers died" + (
+            f" (exit status {code})" if code is not None else "")
+        if code == 1:  # an exception at start-up: mostly the main module run again in it
+            msg += ("; a script that starts workers (e.g. vistac.generate(..., workers=2)) must "
+                    "do so under `if __name__ == \"__main__\":`, since the server imports the "
+                    "script's main module")
+        return msg
+
     def _batch(self, job: Callable[[Any], Any], workers: int,
                items: list[Any]) -> Iterator[tuple]:
         """The server's messages about one batch: ``("result", position, ok, value)`` and
@@ -115,7 +129,7 @@ class ForkServer:
                 yield message
         except (EOFError, OSError):
             over = True
-            raise WorkerDied("the fork server of the workers died") from None
+            raise WorkerDied(self._death()) from None
         finally:
             if not over:  # stopped early: the server stops the workers, then says "over"
                 try:
