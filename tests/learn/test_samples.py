@@ -200,6 +200,31 @@ def test_train_config_switches_appearance_augmentation_on():
     assert protocol_cfg("default", "d", "r").augment_cfg().appearance == 0.0
     with pytest.raises(UserError):
         protocol_cfg("default", "d", "r", appearance=1.5)
+    assert cfg.augment_cfg().appearance_axes == 0.5
+    assert protocol_cfg("default", "d", "r", appearance=0.5,
+                        appearance_axes=1.0).augment_cfg().appearance_axes == 1.0
+    with pytest.raises(UserError, match="appearance_axes"):
+        protocol_cfg("default", "d", "r", appearance_axes=0.0)
+
+
+def test_the_axis_probability_decides_how_many_axes_a_perturbed_image_gets(ds, monkeypatch):
+    """Every axis at probability 1, mostly one at a small probability (at least one always)."""
+    from vistac_learn.data import perturb, samples
+
+    drawn = []
+    real = perturb.random_axes
+
+    def spy(rng, p=0.5):
+        drawn.append(real(rng, p))
+        return drawn[-1]
+
+    monkeypatch.setattr(samples, "random_axes", spy)
+    items = np.arange(len(_set(ds)))
+    _set(ds, augment=AugmentCfg(appearance=1.0, appearance_axes=1.0), seed=2).batch(items, 1)
+    assert drawn and all(a == tuple(perturb.AXES) for a in drawn)
+    drawn.clear()
+    _set(ds, augment=AugmentCfg(appearance=1.0, appearance_axes=0.01), seed=2).batch(items, 1)
+    assert drawn and all(len(a) == 1 for a in drawn)
 
 
 def _equal_batches(a: dict, b: dict) -> None:

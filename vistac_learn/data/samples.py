@@ -79,6 +79,8 @@ class AugmentCfg(Config):
     scale: float = param(0.05, ge=0, lt=0.5, help="tip view: crop-side jitter, fraction")
     appearance: float = param(0.0, ge=0, le=1, help="share of the images perturbed toward "
                               "photographs (`vistac_learn.data.perturb.random_axes`)")
+    appearance_axes: float = param(0.5, gt=0, le=1, help="a perturbed image: probability of "
+                                   "each appearance axis (at least one is drawn)")
 
     def draw(self, rng: np.random.Generator, angle: float) -> Aug:
         """One sample's parameters."""
@@ -93,12 +95,13 @@ class AugmentCfg(Config):
 
 
 def perturb_sample(rgb: np.ndarray, info: SampleInfo, finger_rgb: dict[str, tuple],
-                   rng: np.random.Generator) -> tuple[np.ndarray, SampleInfo]:
-    """A clean render perturbed toward a photograph along a random set of axes
-    (`vistac_learn.data.perturb`), with its fingertips, finger boxes and the simulator's
-    contacts moved by the tilt."""
+                   rng: np.random.Generator, p_axis: float = 0.5
+                   ) -> tuple[np.ndarray, SampleInfo]:
+    """A clean render perturbed toward a photograph along a random set of axes, each drawn
+    with probability `p_axis` (`vistac_learn.data.perturb.random_axes`), with its fingertips,
+    finger boxes and the simulator's contacts moved by the tilt."""
     scene = Scene(segment(rgb, finger_rgb, info.table_rgb), finger_rgb)
-    out = perturb_axes(random_axes(rng), rgb, scene, rng)
+    out = perturb_axes(random_axes(rng, p_axis), rgb, scene, rng)
     hom = out.homography
     if np.allclose(hom, np.eye(3)):
         return out.rgb, info
@@ -286,7 +289,8 @@ class SampleSet(torch.utils.data.Dataset):
         info, aug = self.info(row), self.aug(item, epoch)
         if aug.appearance >= 0:
             rgb, info = perturb_sample(rgb, info, self._finger_rgb,
-                                       np.random.default_rng(aug.appearance))
+                                       np.random.default_rng(aug.appearance),
+                                       self.augment.appearance_axes)
         return (self.view.render(rgb, info, aug, self.size, self.fingers),
                 self.view.side(info, aug, self.fingers), self.view.aux(info, aug, self.fingers),
                 aug)

@@ -92,6 +92,8 @@ class TrainCfg(Config):
     appearance: float = param(0.0, ge=0, le=1, help="share of training images perturbed toward "
                               "photographs (textures, overlay style, light, tilt, camera); 0: "
                               "off")
+    appearance_axes: float = param(0.5, gt=0, le=1, help="a perturbed training image: "
+                                   "probability of each appearance axis (at least one)")
     margin: float = param(0.05, ge=0, le=1, help="study views: finger-box margin, fraction of "
                           "the image side")
     size: int | None = param(None, ge=16, le=1024, help="input side (default: the model's)")
@@ -165,7 +167,8 @@ class TrainCfg(Config):
         if not self.mirror and j == 0 and self.appearance == 0:
             return None
         d = AugmentCfg()
-        return AugmentCfg(self.mirror, d.shift * j, d.turn * j, d.scale * j, self.appearance)
+        return AugmentCfg(self.mirror, d.shift * j, d.turn * j, d.scale * j, self.appearance,
+                          self.appearance_axes)
 
 
 def _is_model(name: str) -> bool:
