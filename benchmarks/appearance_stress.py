@@ -65,13 +65,20 @@ import matplotlib  # noqa: E402
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
 from learnbench import ensure_dataset, headline_data, machine, run_entry, save, slug  # noqa: E402
 
 from vistac.dataset import FINGERS, DatasetTables, open_dataset  # noqa: E402
 from vistac.errors import UserError  # noqa: E402
-from vistac_learn.data.fingertip_table import located_in  # noqa: E402
+from vistac_learn.data.fingertip_table import (  # noqa: E402
+    FingertipTable,
+    fingertip_table,
+    located_in,
+    record,
+)
+from vistac_learn.data.fingertips import Fingertip  # noqa: E402
 from vistac_learn.data.perturb import PERTURBATIONS, Scene, perturb, segment  # noqa: E402
-from vistac_learn.data.samples import SampleSet  # noqa: E402
+from vistac_learn.data.samples import SampleSet, moved_fingertip  # noqa: E402
 from vistac_learn.data.tip_coverage import MAX_MISSING_PCT  # noqa: E402
 from vistac_learn.data.variants import read_rgb  # noqa: E402
 from vistac_learn.evaluate.geometric import GeometricCfg, predict_image  # noqa: E402
@@ -81,15 +88,32 @@ from vistac_learn.evaluate.run import load_model, load_run  # noqa: E402
 from vistac_learn.metrics.scoring import predict, predict_mirror_averaged, score  # noqa: E402
 from vistac_learn.train.config import build_view, input_size, resolve_device  # noqa: E402
 
-# A predictor maps (dataset, rows, their images) to (len(rows), 4) predictions, index then
-# thumb (r_y, r_z), and the number of fingers it could not find.
-Predictor = Callable[[DatasetTables, np.ndarray, list[np.ndarray]], tuple[np.ndarray, int]]
+# A predictor maps (dataset, rows, their images, the homographies from the clean renders to
+# them or None) to (len(rows), 4) predictions, index then thumb (r_y, r_z), and the number of
+# fingers it could not find; or to None where it cannot score those images.
+Predictor = Callable[[DatasetTables, np.ndarray, list[np.ndarray], list[np.ndarray] | None],
+                     tuple[np.ndarray, int] | None]
 
 
-def run_predictor(run: Path) -> Predictor:
+def true_tips(tables: DatasetTables, rows: np.ndarray, homs: list[np.ndarray]
+              ) -> FingertipTable:
+    """What a perfect locator would give on perturbed images: the fingertips located in the
+    clean renders (within 2 px / 3 deg of the simulator's on every clean test image), moved by
+    each image's homography."""
+    clean = fingertip_table(tables)
+    by_row = {int(r): h for r, h in zip(rows, homs, strict=True)}
+    cids = tables.configs["config_id"].to_numpy()
+    return FingertipTable(pd.DataFrame([
+        record(int(cids[r]), {f: moved_fingertip(clean.get(r, f), by_row[r]) if r in by_row
+                              else Fingertip.missing("not scored") for f in FINGERS})
+        for r in range(len(tables.configs))]))
+
+
+def run_predictor(run: Path, oracle: bool = False) -> Predictor:
     """A trained run (both fingers) that finds its fingertips in the images it is given,
     scored as `vistac evaluate` scores it (with its mirrored view averaged in when the run's
-    recipe says so, `TrainCfg.tta`)."""
+    recipe says so, `TrainCfg.tta`). `oracle`: given the true fingertips instead (`true_tips`;
+    only for images made from the clean renders by a known homography)."""
     cfg, _ = load_run(run)
     if cfg.finger != "both":
         raise UserError(f"{run}: trained on --finger {cfg.finger}; the stress test needs both")
@@ -98,9 +122,13 @@ def run_predictor(run: Path) -> Predictor:
     size = input_size(cfg, model)
     view = build_view(cfg)
 
-    def predict_rows(tables, rows, images):
+    def predict_rows(tables, rows, images, homs):
+        if oracle and homs is None:
+            return None
         by_row = dict(zip((int(r) for r in rows), images, strict=True))
-        tips = located_in(tables, rows, images) if view.needs_tips else None
+        tips = None
+        if view.needs_tips:
+            tips = true_tips(tables, rows, homs) if oracle else located_in(tables, rows, images)
         def samples(mirror: bool) -> SampleSet:
             return SampleSet(tables, rows, view, size, FINGERS, "mean", cfg.seed,
                              cfg.rotation_cfg(), None, tips, images=lambda r: by_row[int(r)],
@@ -119,7 +147,7 @@ def image_baseline(predict_one: Callable) -> Callable[[], Predictor]:
     """A non-learned baseline that works image by image, from the same fingertip locator:
     ``predict_one(img, colours, tables) -> ((2F,) prediction, fingers that fell back)``."""
     def make() -> Predictor:
-        def predict_rows(tables, rows, images):
+        def predict_rows(tables, rows, images, homs):
             colours = {f: tables.finger_rgb(f) for f in FINGERS}
             out, lost = [], 0
             for img in images:
@@ -144,10 +172,17 @@ segmented_pinch_predictor = image_baseline(
                                              PinchCfg(segmented=True)))
 
 
-def predictors(runs: dict[str, Path], baselines: bool = True
+ORACLE = ", true fingertips"  # label suffix of a run given the true fingertips
+
+
+def predictors(runs: dict[str, Path], baselines: bool = True, oracle: bool = False
                ) -> dict[str, Callable[[], Predictor]]:
-    """Every predictor to score, by label (factories, built once)."""
+    """Every predictor to score, by label (factories, built once); `oracle`: each run also
+    with the true fingertips (`true_tips`)."""
     out = {label: (lambda r=run: run_predictor(r)) for label, run in runs.items()}
+    if oracle:
+        out |= {label + ORACLE: (lambda r=run: run_predictor(r, oracle=True))
+                for label, run in runs.items()}
     if baselines:
         out["geometric baseline"] = geometric_predictor
         out["pinch baseline"] = pinch_predictor
@@ -175,21 +210,26 @@ def photo_twin(tables: DatasetTables, photo: Path) -> DatasetTables:
 
 
 def perturbed_images(tables: DatasetTables, rows: np.ndarray, name: str, seed: int,
-                     photo: DatasetTables | None = None) -> list[np.ndarray]:
+                     photo: DatasetTables | None = None
+                     ) -> tuple[list[np.ndarray], list[np.ndarray] | None]:
     """The test images under one perturbation (``clean``: as rendered; ``photo preset``:
-    `photo`'s images of the same rows)."""
+    `photo`'s images of the same rows) and the homographies from the clean renders to them
+    (None for the photo preset, a render of its own)."""
     if name == PHOTO_PRESET:
-        return [read_rgb(photo.image_path(int(row))) for row in rows]
+        return [read_rgb(photo.image_path(int(row))) for row in rows], None
     colours = {f: tables.finger_rgb(f) for f in FINGERS}
     k = (("clean", *PERTURBATIONS)).index(name)
-    out = []
+    out, homs = [], []
     for row in rows:
         rgb = read_rgb(tables.image_path(int(row)))
+        hom = np.eye(3)
         if name != "clean":
             scene = Scene(segment(rgb, colours, tables.table_rgb), colours)
-            rgb = perturb(name, rgb, scene, np.random.default_rng([seed, int(row), k])).rgb
+            done = perturb(name, rgb, scene, np.random.default_rng([seed, int(row), k]))
+            rgb, hom = done.rgb, done.homography
         out.append(rgb)
-    return out
+        homs.append(hom)
+    return out, homs
 
 
 def stress(tables: DatasetTables, rows: np.ndarray, preds: dict[str, Callable[[], Predictor]],
@@ -200,9 +240,12 @@ def stress(tables: DatasetTables, rows: np.ndarray, preds: dict[str, Callable[[]
     item_row = np.asarray(rows)
     for name in names:
         t0 = time.perf_counter()
-        images = perturbed_images(tables, rows, name, seed, photo)
+        images, homs = perturbed_images(tables, rows, name, seed, photo)
         for label, fn in built.items():
-            pred, lost = fn(tables, rows, images)
+            got = fn(tables, rows, images, homs)
+            if got is None:
+                continue
+            pred, lost = got
             sc = score(pred, tables, rows, item_row, FINGERS)
             res[label][name] = {f: float(sc[f]["angle_to_mean_median_deg"]) for f in FINGERS}
             res[label][name]["fingers_lost"] = int(lost)
@@ -282,6 +325,9 @@ def main() -> None:
                     help="results (.json) of an earlier invocation on the same test images: "
                     "its predictors join the table (split a long benchmark into parts)")
     ap.add_argument("--name", default="appearance_stress")
+    ap.add_argument("--true-tips", action="store_true", help="also score each run given the "
+                    "true fingertips (those of the clean render moved by the perturbation's "
+                    "homography): what is the locator's and what the model's")
     ap.add_argument("--baselines-only", action="store_true", help="score the image-only "
                     "baselines alone (no run trained or scored)")
     a = ap.parse_args()
@@ -322,7 +368,8 @@ def main() -> None:
                         f"{', '.join(every)}")
     names = every if a.images is None else ("clean", *(n for n in every[1:] if n in a.images))
     t0 = time.perf_counter()
-    res = stress(tables, rows, predictors(runs, not a.no_baselines), names, a.seed, photo)
+    res = stress(tables, rows, predictors(runs, not a.no_baselines, a.true_tips), names, a.seed,
+                 photo)
     cfgs = {label: dataclasses.asdict(load_run(run)[0]) for label, run in runs.items()}
     for path in a.add:
         earlier = json.loads(path.read_text())

@@ -93,7 +93,7 @@ class FingertipTable:
         return int((~self.frame[f"{finger}_ok"].to_numpy()[rows]).sum())
 
 
-def _record(config_id: int, found: dict[str, Fingertip]) -> dict:
+def record(config_id: int, found: dict[str, Fingertip]) -> dict:
     """One row of a fingertip table."""
     rec = {"config_id": config_id}
     for f in FINGERS:
@@ -112,7 +112,7 @@ def located_in(tables: DatasetTables, rows: np.ndarray, images: list[np.ndarray]
     by_row = {int(r): img for r, img in zip(rows, images, strict=True)}
     missing = {f: Fingertip.missing("not among the located images") for f in FINGERS}
     cids = tables.configs["config_id"].to_numpy()
-    recs = [_record(int(cids[r]), locate_fingertips(by_row[r], colours, cfg) if r in by_row
+    recs = [record(int(cids[r]), locate_fingertips(by_row[r], colours, cfg) if r in by_row
                     else missing) for r in range(len(tables.configs))]
     return FingertipTable(pd.DataFrame(recs))
 
@@ -166,7 +166,7 @@ def fingertip_table(tables: DatasetTables, cfg: LocatorCfg = LocatorCfg(),
     for row in tqdm(range(len(tables.configs)), desc="locating fingertips", unit="img",
                     disable=not progress, leave=False):
         found = locate_fingertips(read_rgb(tables.image_path(row)), colours, cfg)
-        rows.append(_record(int(tables.configs["config_id"].iat[row]), found))
+        rows.append(record(int(tables.configs["config_id"].iat[row]), found))
     frame = pd.DataFrame(rows)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)

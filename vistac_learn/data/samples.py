@@ -94,6 +94,16 @@ class AugmentCfg(Config):
                    appearance=seed)
 
 
+def moved_fingertip(t: Fingertip, hom: np.ndarray) -> Fingertip:
+    """A located fingertip moved by an image homography (centre, axis and radius; a missing
+    one stays missing)."""
+    if not t.ok:
+        return t
+    tip = map_points(hom, t.tip[None])[0]
+    edge = map_points(hom, (t.tip + t.radius * np.array([-t.axis[1], t.axis[0]]))[None])[0]
+    return Fingertip(tip, map_direction(hom, t.tip, t.axis), float(np.hypot(*(edge - tip))))
+
+
 def perturb_sample(rgb: np.ndarray, info: SampleInfo, finger_rgb: dict[str, tuple],
                    rng: np.random.Generator, p_axis: float = 0.5
                    ) -> tuple[np.ndarray, SampleInfo]:
@@ -105,15 +115,7 @@ def perturb_sample(rgb: np.ndarray, info: SampleInfo, finger_rgb: dict[str, tupl
     hom = out.homography
     if np.allclose(hom, np.eye(3)):
         return out.rgb, info
-    tips = {}
-    for f, t in info.tips.items():
-        if not t.ok:
-            tips[f] = t
-            continue
-        tip = map_points(hom, t.tip[None])[0]
-        edge = map_points(hom, (t.tip + t.radius * np.array([-t.axis[1], t.axis[0]]))[None])[0]
-        tips[f] = Fingertip(tip, map_direction(hom, t.tip, t.axis),
-                            float(np.hypot(*(edge - tip))))
+    tips = {f: moved_fingertip(t, hom) for f, t in info.tips.items()}
     boxes = {}
     for f, b in info.boxes.items():
         if b is None:
