@@ -12,9 +12,11 @@ from vistac_learn.data.perturb import (
     FINGER_LABEL,
     OBJECT,
     PERTURBATIONS,
+    REGION_AXES,
     TABLE,
     Scene,
     check_names,
+    is_flat_render,
     map_direction,
     map_points,
     perturb,
@@ -115,3 +117,17 @@ def test_random_axes_draws_a_nonempty_subset():
     draws = [random_axes(rng) for _ in range(200)]
     assert all(d and set(d) <= set(AXES) for d in draws)
     assert {a for d in draws for a in d} == set(AXES) and len(set(draws)) > 20
+
+
+def test_a_photograph_is_augmented_along_the_image_axes_only(scene):
+    """Table, object and overlay need the regions of a flat render; a photograph (no bare
+    table colour) gets light, tilt and camera only, and a flat render every axis as before."""
+    img, sc = scene
+    assert is_flat_render(sc.labels)
+    photo = np.random.default_rng(1).integers(0, 256, img.shape, dtype=np.uint8)
+    assert not is_flat_render(segment(photo, FINGER_RGB, TABLE_RGB))
+    draws = [random_axes(np.random.default_rng(k), 0.5, flat=False) for k in range(200)]
+    assert all(d and not set(d) & set(REGION_AXES) for d in draws)
+    assert {a for d in draws for a in d} == set(AXES) - set(REGION_AXES)
+    same = [random_axes(np.random.default_rng(k), 0.5) for k in range(50)]
+    assert same == [random_axes(np.random.default_rng(k), 0.5, flat=True) for k in range(50)]

@@ -214,8 +214,9 @@ def test_the_axis_probability_decides_how_many_axes_a_perturbed_image_gets(ds, m
     drawn = []
     real = perturb.random_axes
 
-    def spy(rng, p=0.5):
-        drawn.append(real(rng, p))
+    def spy(rng, p=0.5, flat=True):
+        assert flat  # the dataset's renders are flat
+        drawn.append(real(rng, p, flat))
         return drawn[-1]
 
     monkeypatch.setattr(samples, "random_axes", spy)

@@ -22,6 +22,9 @@ masks can be passed as `Scene.labels`), and each perturbation below changes how 
 - ``all``: every axis in the order a photograph makes them (table, object, overlay, light,
   tilt, camera).
 
+Train-time augmentation (`random_axes`) applies the region axes (table, object, overlay) only
+to flat renders (`is_flat_render`); a photograph gets the image-level axes alone.
+
 `perturb(name, rgb, scene, rng)` returns the new image and the homography that maps pixel
 coordinates of the clean render to the perturbed one (identity but for ``tilt``), so that
 positions in the image (the fingertips) can be compared with the simulator's truth. Every draw
@@ -400,10 +403,28 @@ def perturb_axes(axes: tuple[str, ...], rgb: np.ndarray, scene: Scene,
     return Perturbed(np.clip(img + 0.5, 0, 255).astype(np.uint8), hom)
 
 
-def random_axes(rng: np.random.Generator, p: float = 0.5) -> tuple[str, ...]:
-    """A random set of axes (train-time augmentation): each with probability `p`, at least one."""
+REGION_AXES = ("table", "object", "overlay")  # these need the regions of a flat render
+FLAT_TABLE_SHARE = 0.1  # a flat render shows at least this share of bare table
+
+
+def is_flat_render(labels: np.ndarray) -> bool:
+    """Whether `segment`'s labels are those of a flat-colour render: at least
+    `FLAT_TABLE_SHARE` of the pixels have the table's exact colour. A photograph (``--preset
+    photo``, an ingested recording) has almost none: its regions cannot be read off its colours."""
+    return bool((labels == TABLE).mean() >= FLAT_TABLE_SHARE)
+
+
+def random_axes(rng: np.random.Generator, p: float = 0.5, flat: bool = True
+                ) -> tuple[str, ...]:
+    """A random set of axes (train-time augmentation): each with probability `p`, at least one.
+    Not `flat` (a photograph): the image-level axes only (light, tilt, camera), drawn alike."""
     pick = tuple(a for a in AXES if rng.random() < p)
-    return pick or (list(AXES)[int(rng.integers(len(AXES)))],)
+    pick = pick or (list(AXES)[int(rng.integers(len(AXES)))],)
+    if flat:
+        return pick
+    image_axes = [a for a in AXES if a not in REGION_AXES]
+    return tuple(a for a in pick if a in image_axes) or \
+        (image_axes[int(rng.integers(len(image_axes)))],)
 
 
 def map_points(hom: np.ndarray, pts: np.ndarray) -> np.ndarray:

@@ -44,6 +44,7 @@ from vistac_learn.data.fingertip_table import FingertipTable
 from vistac_learn.data.fingertips import Fingertip, read_rgb
 from vistac_learn.data.perturb import (
     Scene,
+    is_flat_render,
     map_direction,
     map_points,
     perturb_axes,
@@ -108,10 +109,11 @@ def perturb_sample(rgb: np.ndarray, info: SampleInfo, finger_rgb: dict[str, tupl
                    rng: np.random.Generator, p_axis: float = 0.5
                    ) -> tuple[np.ndarray, SampleInfo]:
     """A clean render perturbed toward a photograph along a random set of axes, each drawn
-    with probability `p_axis` (`vistac_learn.data.perturb.random_axes`), with its fingertips,
+    with probability `p_axis` (`vistac_learn.data.perturb.random_axes`; a photograph, whose
+    regions its colours do not give, along the image-level axes only), with its fingertips,
     finger boxes and the simulator's contacts moved by the tilt."""
     scene = Scene(segment(rgb, finger_rgb, info.table_rgb), finger_rgb)
-    out = perturb_axes(random_axes(rng, p_axis), rgb, scene, rng)
+    out = perturb_axes(random_axes(rng, p_axis, is_flat_render(scene.labels)), rgb, scene, rng)
     hom = out.homography
     if np.allclose(hom, np.eye(3)):
         return out.rgb, info

@@ -195,7 +195,8 @@ def selectable_metrics() -> tuple[str, ...]:
 STUDY = {"model": "schoeconv100-v3-fc160", "variant": "edge-index", "finger": "index",
          "epochs": 20, "batch_size": 5, "optimizer": "adam", "lr": 1e-4, "weight_decay": 1e-5,
          "schedule": "constant", "rotations": "fixed", "n_rotations": 20, "rotation_step": 18.0,
-         "mirror": False, "jitter": 0.0, "select": "error_median_pct", "tta": False}
+         "mirror": False, "jitter": 0.0, "appearance": 0.0, "select": "error_median_pct",
+         "tta": False}
 PROTOCOLS = {"default": {}, "study": STUDY}
 
 
