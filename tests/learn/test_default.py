@@ -66,7 +66,8 @@ def test_sanity_a_model_fits_64_samples(generated, tmp_path, protocol, model, ep
     """Training loss on 64 training configurations falls to a small fraction of what the best
     constant prediction leaves (the test fails if data, labels and model do not line up)."""
     kw = dict(model=model, epochs=epochs, train_split="val", val_split="test", mirror=False,
-              jitter=0.0, select="loss", device="cpu", cache_dir=str(tmp_path / "cache"))
+              jitter=0.0, appearance=0.0, select="loss", device="cpu",
+              cache_dir=str(tmp_path / "cache"))
     kw |= dict(batch_size=8) if protocol == "default" else dict(rotations="none")
     cfg = protocol_cfg(protocol, str(generated), str(tmp_path / "run"), **kw)
     n = len(open_dataset(generated).rows("val"))
@@ -77,9 +78,14 @@ def test_sanity_a_model_fits_64_samples(generated, tmp_path, protocol, model, ep
     assert ratio < 0.05, ratio
 
 
+# Appearance augmentation (on in the recipe) is left out of the longer trainings below: it
+# triples the cost of a sample and is tested on its own (test_samples.py, test_perturb.py).
+NO_APPEARANCE = dict(appearance=0.0)
+
+
 def test_default_training_beats_a_mean_predictor(generated, tmp_path):
     run = train(protocol_cfg("default", str(generated), str(tmp_path / "run"), epochs=25,
-                             batch_size=16, device="cpu"), progress=False)
+                             batch_size=16, device="cpu", **NO_APPEARANCE), progress=False)
     res = evaluate_run(run, split="test", make_plots=False)
     t = open_dataset(generated)
     for f in ("index", "thumb"):
@@ -110,9 +116,12 @@ def test_the_recipe_says_whether_evaluation_averages_the_mirrored_view(generated
     with pytest.raises(UserError, match="--tta or --no-tta"):
         vistac.evaluate(run, tta=True, no_tta=True)
     meta = json.loads((run / "config.json").read_text())
-    del meta["train"]["tta"]  # a run of an earlier version
+    del meta["train"]["tta"], meta["train"]["appearance"]  # a run of an earlier version
     (run / "config.json").write_text(json.dumps(meta))
     assert not evaluate_run(run, split="test", make_plots=False, references=False)["tta"]
+    from vistac_learn.train.run_files import read_run_config, run_settings
+
+    assert run_settings(run, read_run_config(run, ""), "").appearance == 0.0  # trained without
 
 
 def test_init_loads_the_weights_it_names(generated, tmp_path):
@@ -120,7 +129,7 @@ def test_init_loads_the_weights_it_names(generated, tmp_path):
     loss is far below the same run's from scratch."""
     kw = dict(epochs=1, lr=1e-4, schedule="constant", device="cpu")
     src = train(protocol_cfg("default", str(generated), str(tmp_path / "src"), epochs=8,
-                             device="cpu"), progress=False)
+                             device="cpu", **NO_APPEARANCE), progress=False)
     tuned = train(protocol_cfg("default", str(generated), str(tmp_path / "ft"), init=str(src),
                                **kw), progress=False)
     scratch = train(protocol_cfg("default", str(generated), str(tmp_path / "sc"), **kw),
@@ -189,7 +198,7 @@ def pinch_run(generated, tmp_path_factory):
     """The default recipe (pinch view, contact targets), 6 epochs on the generated data."""
     out = tmp_path_factory.mktemp("pinch") / "run"
     return train(protocol_cfg("default", str(generated), str(out), epochs=6, batch_size=16,
-                              device="cpu"), progress=False)
+                              device="cpu", **NO_APPEARANCE), progress=False)
 
 
 def _val_batch(cfg, data: str):

@@ -197,7 +197,8 @@ def test_train_config_switches_appearance_augmentation_on():
 
     cfg = protocol_cfg("default", "d", "r", appearance=0.5)
     assert cfg.augment_cfg().appearance == 0.5
-    assert protocol_cfg("default", "d", "r").augment_cfg().appearance == 0.0
+    assert protocol_cfg("default", "d", "r").augment_cfg().appearance == 0.5  # the recipe's
+    assert protocol_cfg("study", "d", "r").augment_cfg() is None  # the study had none
     with pytest.raises(UserError):
         protocol_cfg("default", "d", "r", appearance=1.5)
     assert cfg.augment_cfg().appearance_axes == 0.5

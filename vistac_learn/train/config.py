@@ -89,7 +89,7 @@ class TrainCfg(Config):
     tta: bool = param(True, help="the recipe's test-time augmentation: `vistac evaluate` "
                       "averages each configuration's mirrored view (and rotations) unless told "
                       "otherwise (--tta / --no-tta there)")
-    appearance: float = param(0.0, ge=0, le=1, help="share of training images perturbed toward "
+    appearance: float = param(0.5, ge=0, le=1, help="share of training images perturbed toward "
                               "photographs (textures, overlay style, light, tilt, camera); 0: "
                               "off")
     appearance_axes: float = param(0.5, gt=0, le=1, help="a perturbed training image: "

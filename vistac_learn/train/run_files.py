@@ -63,8 +63,9 @@ def run_settings(run: Path, meta: dict, fix: str) -> TrainCfg:
     from vistac_learn.train.config import TrainCfg
 
     known = {f.name for f in dataclasses.fields(TrainCfg)}
-    # a run written before the recipe had test-time augmentation was evaluated without it
-    settings = {"tta": False, **meta["train"]}
+    # a run written before the recipe had test-time augmentation was evaluated without it, and
+    # one written before appearance augmentation (or its axis probability) trained without it
+    settings = {"tta": False, "appearance": 0.0, "appearance_axes": 0.5, **meta["train"]}
     try:
         return TrainCfg(**{k: v for k, v in settings.items() if k in known})
     except (UserError, TypeError, ValueError) as exc:
