@@ -14,7 +14,7 @@ with a cross entropy that weighs pixels next to a label boundary `--edge-weight`
 (`edge_weighted_loss`); the script reports the held-out pixel IoU of each class on the
 datasets' test splits and writes the weights (`--out`, by default the package's).
 
-Usage (the shipped weights, about 22 CPU minutes):
+Usage (the shipped weights, about 36 CPU minutes):
     OMP_NUM_THREADS=1 python benchmarks/train_segmenter.py --work /tmp/segtrain
 """
 
@@ -168,7 +168,7 @@ def main() -> None:
     ap.add_argument("--photo-seeds", type=int, nargs="+", default=list(PHOTO_SEEDS),
                     help="seeds of the photo datasets (one each)")
     ap.add_argument("--copies", type=int, default=2, help="perturbed copies per clean image")
-    ap.add_argument("--steps", type=int, default=6000)
+    ap.add_argument("--steps", type=int, default=10000)
     ap.add_argument("--batch", type=int, default=8)
     ap.add_argument("--crop", type=int, default=128)
     ap.add_argument("--lr", type=float, default=4e-3)

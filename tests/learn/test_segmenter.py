@@ -187,7 +187,7 @@ def test_segmenter_finds_the_fingers_of_a_clean_render_like_its_colours(small_da
 
 def test_learned_locator_finds_tips_in_images_perturbed_every_way_at_once(small_dataset):
     """Every axis of perturb.py at once (photo tables and objects, restyled overlays, light,
-    tilt, noise/blur/JPEG) on the first 8 images: the learned fit alone places 14 of the 16
+    tilt, noise/blur/JPEG) on the first 8 images: the learned fit alone places 15 of the 16
     fingers within tolerance (the colour fit 11; measured with the shipped weights)."""
     t = open_dataset(small_dataset)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
@@ -206,7 +206,7 @@ def test_learned_locator_finds_tips_in_images_perturbed_every_way_at_once(small_
             good += got.ok and bool(
                 np.hypot(*(got.tip - map_points(p.homography, tip[None])[0])) < TIP_PX
                 and _angle(got.axis, map_direction(p.homography, tip, axis)) < AXIS_DEG)
-    assert good >= 13, f"{good} of 16 within tolerance"
+    assert good >= 14, f"{good} of 16 within tolerance"
 
 
 def test_fingers_are_found_in_photo_preset_images(tmp_path):
