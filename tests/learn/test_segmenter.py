@@ -185,6 +185,24 @@ def test_segmenter_finds_the_fingers_of_a_clean_render_like_its_colours(small_da
             assert iou > 0.85, (row, code, iou)
 
 
+def test_segmenter_reads_smaller_images_at_the_scale_it_learned(tmp_path):
+    """96 px images (fingers 10 px wide, not the 30-40 px of training) are segmented at the
+    net's native size and the labels brought back: the learned fit lands on the colour fit's
+    fingers (at 96 px directly, two thumbs were taken 20 px away)."""
+    from tests.learn_fixtures import make_dataset
+
+    t = open_dataset(make_dataset(tmp_path / "ds", n=12))
+    colours = {f: t.finger_rgb(f) for f in FINGERS}
+    for row in range(len(t.configs)):
+        rgb = read_rgb(t.image_path(row))
+        assert rgb.shape == (96, 96, 3)
+        colour = colour_fingertips(rgb, colours, LocatorCfg())
+        learned = learned_fingertips(rgb, colours, LocatorCfg())
+        for f in FINGERS:
+            assert learned[f].ok, (row, f, learned[f].reason)
+            assert np.hypot(*(learned[f].tip - colour[f].tip)) < TIP_PX, (row, f)
+
+
 def test_learned_locator_finds_tips_in_images_perturbed_every_way_at_once(small_dataset):
     """Every axis of perturb.py at once (photo tables and objects, restyled overlays, light,
     tilt, noise/blur/JPEG) on the first 8 images: the learned fit alone places 15 of the 16

@@ -33,6 +33,9 @@ CLASSES = 4
 DEFAULT_WIDTHS = (8, 16, 32, 48, 64)
 """Channels of the shipped net's levels (five: 1/16 resolution at the bottom, context enough to
 tell a finger from a table or object of its colour; about 25 CPU ms per 227 px image)."""
+NATIVE_PX = 227
+"""Side of the images the net was trained on (the generator's default): larger or smaller
+images are resized to it for the net, and its labels back (fingers of the size it learned)."""
 OBJECT_RGB = (60, 60, 140)  # an object colour far from the table and from both overlays
 
 
@@ -141,8 +144,17 @@ def segment_image(rgb: np.ndarray, model: TinyUNet | None = None) -> np.ndarray:
     if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
         raise UserError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
     model = model or default_segmenter()
+    h, w = rgb.shape[:2]
+    x = to_tensor(rgb)
+    scale = NATIVE_PX / max(h, w)
+    if abs(scale - 1.0) > 0.05:  # the scale it was trained at: fingers of the size it knows
+        x = nn.functional.interpolate(x, size=(round(h * scale), round(w * scale)),
+                                      mode="bilinear", align_corners=False)
     with torch.inference_mode():
-        logits = model(to_tensor(rgb).contiguous(memory_format=torch.channels_last))
+        logits = model(x.contiguous(memory_format=torch.channels_last))
+        if logits.shape[-2:] != (h, w):
+            logits = nn.functional.interpolate(logits, size=(h, w), mode="bilinear",
+                                               align_corners=False)
     return logits[0].argmax(0).to(torch.uint8).numpy()
 
 
