@@ -3,9 +3,10 @@
 For each image of a generated dataset and each perturbation (`vistac_learn.data.perturb`: one
 axis at a time and all at once, drawn from (seed, row, perturbation)), and for the images of a
 ``--preset photo`` dataset (case ``photo``; its truth projected by its perspective camera), the
-colour fit and the learned fit (`vistac_learn.data.fingertips`) run once on the image, and four
-locators made from them are compared side by side (`MODES`: colour alone, learned alone, and
-the `LocatorCfg.segmenter` combinations ``fallback`` and ``check``). Their tip centre and finger
+colour fit, the learned fit and the colour fit inside the learned fingers
+(`vistac_learn.data.fingertips`) run once on the image, and five locators made from them are
+compared side by side (`MODES`: colour alone, learned alone, and the `LocatorCfg.segmenter`
+combinations ``fallback``, ``check`` and ``refine``). Their tip centre and finger
 axis are compared with the simulator's (the ``tip_*`` / ``approach_*`` columns of
 ``configs.parquet``, moved by the perturbation's homography). Reported per case, locator and
 finger: found %, % within the agreed tolerance (found, tip < 2 px, axis < 3 deg); per case and
@@ -42,8 +43,9 @@ from vistac_learn.data.fingertips import (  # noqa: E402
     LocatorCfg,
     colour_fingertips,
     combine,
-    learned_fingertips,
+    learned_fit,
     locate_fingertips,
+    refined_fingertips,
 )
 from vistac_learn.data.perturb import (  # noqa: E402
     PERTURBATIONS,
@@ -59,9 +61,9 @@ from vistac_sim.generate.config import GenerateCfg  # noqa: E402
 TIP_PX, AXIS_DEG = 2.0, 3.0  # the agreed tolerance (tests/learn/test_fingertips.py)
 
 
-MODES = ("colour", "learned", "fallback", "check")
+MODES = ("colour", "learned", "fallback", "check", "refine")
 """The locators compared: the colour fit alone (segmenter off), the learned segmenter's labels
-alone (always), and the two combinations of `LocatorCfg.segmenter` (fallback, check)."""
+alone (always), and the combinations of `LocatorCfg.segmenter` (fallback, check, refine)."""
 
 
 def _errors(found, truth, hom) -> dict[str, tuple[float, float]]:
@@ -115,14 +117,18 @@ def measure(data: Path, photo: Path | None, n: int, seed: int, names: tuple[str,
         t0 = time.process_time()
         colour = colour_fingertips(img, colours, cfg)
         t1 = time.process_time()
-        learned = learned_fingertips(img, colours, cfg)
+        learned, masks = learned_fit(img, colours, cfg)
         t2 = time.process_time()
-        tc, tl = t1 - t0, t2 - t1
+        refined = refined_fingertips(img, colours, cfg, masks)
+        t3 = time.process_time()
+        tc, tl, tr = t1 - t0, t2 - t1, t3 - t2
         results = {
             "colour": (colour, tc), "learned": (learned, tl),
             "fallback": (combine(colour, learned, replace(cfg, segmenter="fallback")),
                          tc + (0.0 if all(v.ok for v in colour.values()) else tl)),
-            "check": (combine(colour, learned, replace(cfg, segmenter="check")), tc + tl)}
+            "check": (combine(colour, learned, replace(cfg, segmenter="check")), tc + tl),
+            "refine": (combine(None, learned, replace(cfg, segmenter="refine"), refined),
+                       tl + tr)}
         for mode, (found, secs) in results.items():
             r = rec.setdefault(name, {}).setdefault(mode, {
                 "tip": {f: [] for f in FINGERS}, "axis": {f: [] for f in FINGERS},
@@ -245,8 +251,9 @@ def markdown(res: dict) -> str:
                 f"{modes[m]['ms_per_image']:.1f}"]) + " |")
     reasons = [f"- {name}, {m}: " + "; ".join(f"{k} ({v})" for k, v in r["reasons"].items())
                for name, modes in res["results"].items() for m, r in modes.items()
-               if r["reasons"] and m in ("colour", "check")]
-    return "\n".join(lines + ([""] + ["Failure reasons (count), colour and check:"] + reasons
+               if r["reasons"] and m in ("colour", LocatorCfg().segmenter)]
+    return "\n".join(lines + ([""] + [f"Failure reasons (count), colour and "
+                                       f"{LocatorCfg().segmenter}:"] + reasons
                               if reasons else []))
 
 

@@ -17,6 +17,7 @@ from vistac_learn.data.fingertips import (
     combine,
     learned_fingertips,
     locate_fingertips,
+    refined_fingertips,
 )
 from vistac_learn.data.perturb import (
     FINGER_LABEL,
@@ -118,6 +119,61 @@ def test_combine_keeps_the_colour_fit_where_both_agree_and_the_learned_one_elsew
     assert not gone.ok and "gone" in gone.reason and "segmenter: none" in gone.reason
 
 
+def test_refine_keeps_the_refined_fit_where_it_agrees_and_the_learned_one_elsewhere():
+    cfg = LocatorCfg(segmenter="refine")
+    refined = {"index": _tip(0.5), "thumb": _tip(40.0)}
+    learned = {"index": _tip(1.0), "thumb": _tip(10.0)}
+    out = combine(None, learned, cfg, refined)
+    assert out["index"].tip[0] == 0.5 and out["thumb"].tip[0] == 10.0
+    turned = combine(None, learned, cfg, {**refined, "index": _tip(0.5, (0.0, 1.0))})
+    assert turned["index"].tip[0] == 1.0  # axes 90 deg apart: the learned fit
+    alone = combine(None, {**learned, "index": Fingertip.missing("segmenter: none")}, cfg,
+                    refined)
+    assert alone["index"].tip[0] == 0.5
+    gone = combine(None, {**learned, "index": Fingertip.missing("segmenter: none")}, cfg,
+                   {**refined, "index": _tip(0.0, ok=False)})["index"]
+    assert not gone.ok and "gone" in gone.reason and "segmenter: none" in gone.reason
+    with pytest.raises(ValueError, match="refine"):
+        combine(None, learned, cfg)
+
+
+def test_refined_fit_reads_the_colour_only_inside_the_segmenters_finger():
+    """A larger red decoy (a table mark of the thumb's colour) draws the colour fit away from the
+    thumb; inside the thumb's learned mask the colour fit finds the thumb, to the sub-pixel."""
+    lab, truth = _capsule_labels()
+    img = palette_image(lab, COLOURS, (0.81, 0.81, 0.81))
+    cfg = LocatorCfg()
+    plain = colour_fingertips(img, COLOURS, cfg)
+    cv2.line(img, (10, 110), (10, 75), (230, 0, 0), 19)  # the decoy, wider than the thumb
+    colour = colour_fingertips(img, COLOURS, cfg)["thumb"]
+    assert not colour.ok or np.hypot(*(colour.tip - truth["thumb"][0])) > 20
+    masks = {f: lab == FINGER_LABEL[f] for f in FINGERS}
+    refined = refined_fingertips(img, COLOURS, cfg, masks)
+    for f in FINGERS:
+        assert refined[f].ok, refined[f].reason
+        np.testing.assert_allclose(refined[f].tip, plain[f].tip, atol=1e-6)  # as without decoy
+        assert np.hypot(*(refined[f].tip - truth[f][0])) < TIP_PX
+    # an empty learned mask leaves that finger to the colour fit over the whole image
+    masks["index"] = np.zeros_like(masks["index"])
+    assert refined_fingertips(img, COLOURS, cfg, masks)["index"].ok
+
+
+def test_the_default_locator_keeps_the_colour_fit_on_clean_renders(small_dataset):
+    """On clean renders the refined fit is the colour fit, to the last bit: the segmenter only
+    picks the blob."""
+    t = open_dataset(small_dataset)
+    colours = {f: t.finger_rgb(f) for f in FINGERS}
+    assert LocatorCfg().segmenter == "refine"
+    for row in range(4):
+        rgb = read_rgb(t.image_path(row))
+        got, colour = locate_fingertips(rgb, colours), colour_fingertips(rgb, colours,
+                                                                          LocatorCfg())
+        for f in FINGERS:
+            assert got[f].ok and colour[f].ok
+            np.testing.assert_allclose(got[f].tip, colour[f].tip, atol=1e-9)
+            np.testing.assert_allclose(got[f].axis, colour[f].axis, atol=1e-9)
+
+
 def test_segmenter_finds_the_fingers_of_a_clean_render_like_its_colours(small_dataset):
     t = open_dataset(small_dataset)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
@@ -129,9 +185,27 @@ def test_segmenter_finds_the_fingers_of_a_clean_render_like_its_colours(small_da
             assert iou > 0.85, (row, code, iou)
 
 
+def test_segmenter_reads_smaller_images_at_the_scale_it_learned(tmp_path):
+    """96 px images (fingers 10 px wide, not the 30-40 px of training) are segmented at the
+    net's native size and the labels brought back: the learned fit lands on the colour fit's
+    fingers (at 96 px directly, two thumbs were taken 20 px away)."""
+    from tests.learn_fixtures import make_dataset
+
+    t = open_dataset(make_dataset(tmp_path / "ds", n=12))
+    colours = {f: t.finger_rgb(f) for f in FINGERS}
+    for row in range(len(t.configs)):
+        rgb = read_rgb(t.image_path(row))
+        assert rgb.shape == (96, 96, 3)
+        colour = colour_fingertips(rgb, colours, LocatorCfg())
+        learned = learned_fingertips(rgb, colours, LocatorCfg())
+        for f in FINGERS:
+            assert learned[f].ok, (row, f, learned[f].reason)
+            assert np.hypot(*(learned[f].tip - colour[f].tip)) < TIP_PX, (row, f)
+
+
 def test_learned_locator_finds_tips_in_images_perturbed_every_way_at_once(small_dataset):
     """Every axis of perturb.py at once (photo tables and objects, restyled overlays, light,
-    tilt, noise/blur/JPEG) on the first 8 images: the learned fit alone places 12 of the 16
+    tilt, noise/blur/JPEG) on the first 8 images: the learned fit alone places 15 of the 16
     fingers within tolerance (the colour fit 11; measured with the shipped weights)."""
     t = open_dataset(small_dataset)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
@@ -150,13 +224,13 @@ def test_learned_locator_finds_tips_in_images_perturbed_every_way_at_once(small_
             good += got.ok and bool(
                 np.hypot(*(got.tip - map_points(p.homography, tip[None])[0])) < TIP_PX
                 and _angle(got.axis, map_direction(p.homography, tip, axis)) < AXIS_DEG)
-    assert good >= 11, f"{good} of 16 within tolerance"
+    assert good >= 14, f"{good} of 16 within tolerance"
 
 
 def test_fingers_are_found_in_photo_preset_images(tmp_path):
     """`--preset photo` (textures, light, a tilted perspective camera, drawn overlays, JPEG):
-    every finger found, nearly all within tolerance of the simulator's tip projected by the
-    camera (`simulator_tips` of a perspective view)."""
+    every finger found and within tolerance of the simulator's tip projected by the camera
+    (`simulator_tips` of a perspective view)."""
     from vistac.cli import main
 
     out = tmp_path / "photo"
@@ -172,4 +246,4 @@ def test_fingers_are_found_in_photo_preset_images(tmp_path):
             assert found[f].ok, (row, f, found[f].reason)
             good += bool(np.hypot(*(found[f].tip - tip)) < TIP_PX
                          and _angle(found[f].axis, axis) < AXIS_DEG)
-    assert good >= 19, f"{good} of 20 within tolerance"  # measured: 19 (one thumb 16 px off)
+    assert good == 20, f"{good} of 20 within tolerance"  # locator v3: 19 (a thumb 16 px off)

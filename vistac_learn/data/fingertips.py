@@ -29,12 +29,16 @@ Steps, all whole-array OpenCV / NumPy:
    points from the back of the finger to the tip.
 
 These steps are the *colour fit* (`colour_fingertips`). Photographs can defeat its colour
-analysis (a table photograph of the overlay's hue, a restyled overlay under a white-balance
-shift), so a learned per-pixel segmenter (`vistac_learn.data.segmenter`) gives a second opinion:
-its labels drawn in a clean render's flat colours go through the same colour fit
-(`learned_fingertips`). `LocatorCfg.segmenter` says how the two combine (`combine`): by default
-(``fallback``) the learned fit stands in for a finger the colour fit does not find; ``check``
-runs both and takes the learned fit where they disagree.
+analysis (a table or object of the overlay's hue taken for the finger or merged with it, a
+restyled overlay under a white-balance shift), so a learned per-pixel segmenter
+(`vistac_learn.data.segmenter`) reads the image too: its labels drawn in a clean render's flat
+colours go through the same colour fit (`learned_fingertips`). `LocatorCfg.segmenter` says how
+the two combine (`combine`). By default (``refine``) the segmenter picks each finger's blob and
+the colour fit draws its sub-pixel outline: the colour fit runs only within `refine_px` of the
+segmenter's finger (`refined_fingertips`), and is kept where it agrees with the learned fit
+(else the learned fit); on clean renders that is the colour fit exactly. ``fallback`` uses the
+learned fit only for a finger the colour fit does not find; ``check`` runs both over the whole
+image and takes the learned fit where they disagree.
 
 Measured (`benchmarks/locator_robustness.py`, docs/appearance.md "Locating fingertips in
 photographs"): clean, each perturbation, all at once and `photo`-preset images, colour fit vs
@@ -56,7 +60,7 @@ from vistac.dataset.schema import TABLE_RGB
 from vistac.errors import UserError
 from vistac_learn.data.variants import read_rgb  # noqa: F401 (re-exported: images as the locator reads them)
 
-LOCATOR_VERSION = 3  # bump when the locator's output changes; invalidates cached tables
+LOCATOR_VERSION = 4  # bump when the locator's output changes; invalidates cached tables
 FIELDS = ("tip_u", "tip_v", "axis_u", "axis_v", "radius")
 
 
@@ -92,13 +96,18 @@ class LocatorCfg(Config):
     probe: float = param(1.5, gt=0, help="radius of the look-ahead disc, in finger radii")
     object_tol: float = param(30.0, gt=0, help="RGB distance (0-255) from the table colour "
                               "above which a pixel is object")
-    segmenter: Literal["off", "fallback", "check", "always"] = param(
-        "fallback", help="the learned segmenter (vistac_learn.data.segmenter) as a second "
-        "opinion: off; fallback (only for a finger the colour fit misses); check (both run, "
-        "the learned fit wins where they disagree); always (the learned fit only)")
-    agree_px: float = param(3.0, gt=0, help="'check': colour and learned tips closer than "
-                            "this (and axes within agree_deg) agree; the colour fit is kept")
-    agree_deg: float = param(4.0, gt=0, help="'check': largest axis difference that agrees")
+    segmenter: Literal["off", "fallback", "check", "always", "refine"] = param(
+        "refine", help="the learned segmenter (vistac_learn.data.segmenter) and the colour "
+        "fit combined: off (colour fit only); fallback (the learned fit only for a finger the "
+        "colour fit misses); check (both run, the learned fit wins where they disagree); "
+        "always (the learned fit only); refine (the colour fit inside the segmenter's finger, "
+        "kept where it agrees with the learned fit)")
+    agree_px: float = param(3.0, gt=0, help="'check' / 'refine': colour and learned tips closer "
+                            "than this (and axes within agree_deg) agree; the colour fit is kept")
+    agree_deg: float = param(4.0, gt=0, help="'check' / 'refine': largest axis difference that "
+                             "agrees")
+    refine_px: int = param(1, ge=0, le=10, help="'refine': the colour fit looks for a finger "
+                           "within this many pixels of the segmenter's finger")
 
 
 @dataclass(frozen=True)
@@ -159,9 +168,11 @@ def _peaks(hist: np.ndarray, n: int) -> list[int]:
     return out
 
 
-def colour_masks(hsv: np.ndarray, rgb, cfg: LocatorCfg) -> tuple[list[np.ndarray], str]:
+def colour_masks(hsv: np.ndarray, rgb, cfg: LocatorCfg, region: np.ndarray | None = None
+                 ) -> tuple[list[np.ndarray], str]:
     """Candidate masks of a finger's drawn colour, most likely first, from the image in float
-    HSV (hue degrees, s and v in [0, 1]); ([], why) when there is none.
+    HSV (hue degrees, s and v in [0, 1]); ([], why) when there is none. With `region`, only
+    pixels inside it are candidates (and vote for the drawn colour).
 
     The drawn colour is found in the image, not assumed: among the pixels whose hue lies within
     `hue_tol_deg` of the nominal colour (saturation and brightness above floors), the
@@ -176,6 +187,8 @@ def colour_masks(hsv: np.ndarray, rgb, cfg: LocatorCfg) -> tuple[list[np.ndarray
     off = _hue_offset(hue, hue_deg(rgb))
     cand = (np.abs(off) <= cfg.hue_tol_deg) & (sat >= cfg.min_saturation) & \
         (val >= cfg.min_value)
+    if region is not None:
+        cand &= region
     if not cand.any():
         return [], f"0 px of its colour (none within {cfg.hue_tol_deg:g} deg of its hue)"
     c_off, c_sat, c_val = off[cand], sat[cand], val[cand]
@@ -249,18 +262,21 @@ def finger_masks(rgb: np.ndarray, colours: dict[str, tuple], cfg: LocatorCfg
     return explained_finger_masks(rgb, colours, cfg)[0]
 
 
-def explained_finger_masks(rgb: np.ndarray, colours: dict[str, tuple], cfg: LocatorCfg
+def explained_finger_masks(rgb: np.ndarray, colours: dict[str, tuple], cfg: LocatorCfg,
+                           regions: dict[str, np.ndarray] | None = None
                            ) -> tuple[dict[str, np.ndarray], dict[str, str]]:
     """`finger_masks` and, for each finger whose mask is unusable (then empty), why.
 
-    Of the candidate colours (`colour_masks`), the first whose largest blob (opened, holes
-    filled) is finger-like (`_finger_like`) wins.
+    Of the candidate colours (`colour_masks`, inside the finger's entry of `regions` when it
+    has one), the first whose largest blob (opened, holes filled) is finger-like
+    (`_finger_like`) wins.
     """
+    regions = regions or {}
     hsv = to_hsv(rgb)
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (cfg.open_px, cfg.open_px))
     masks, why = {}, {}
     for f, c in colours.items():
-        cands, reason = colour_masks(hsv, c, cfg)
+        cands, reason = colour_masks(hsv, c, cfg, regions.get(f))
         masks[f], why[f] = np.zeros(rgb.shape[:2], bool), reason
         first = ""
         for m in cands:
@@ -371,21 +387,39 @@ def locate_fingertips(rgb: np.ndarray, colours: dict[str, tuple],
     if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
         raise UserError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
     mode = cfg.segmenter
+    if mode == "refine":
+        learned, masks = learned_fit(rgb, colours, cfg)
+        return combine(None, learned, cfg, refined_fingertips(rgb, colours, cfg, masks))
     colour = colour_fingertips(rgb, colours, cfg) if mode != "always" else None
     if mode == "off" or (mode == "fallback" and all(t.ok for t in colour.values())):
         return colour
     return combine(colour, learned_fingertips(rgb, colours, cfg), cfg)
 
 
+def agree(a: Fingertip, b: Fingertip, cfg: LocatorCfg) -> bool:
+    """Whether two found fingertips agree: tips within `agree_px`, axes within `agree_deg`."""
+    cos = float(np.clip(a.axis @ b.axis, -1.0, 1.0))
+    return bool(np.hypot(*(a.tip - b.tip)) <= cfg.agree_px
+                and np.degrees(np.arccos(cos)) <= cfg.agree_deg)
+
+
 def combine(colour: dict[str, Fingertip] | None, learned: dict[str, Fingertip],
-            cfg: LocatorCfg) -> dict[str, Fingertip]:
+            cfg: LocatorCfg, refined: dict[str, Fingertip] | None = None
+            ) -> dict[str, Fingertip]:
     """Per finger, the colour fit or the learned one as `LocatorCfg.segmenter` says.
 
     ``fallback``: the colour fit where found, else the learned one. ``check``: the colour fit
-    where both are found and agree (tips within `agree_px`, axes within `agree_deg`), the
-    learned fit where they disagree or only it is found, the colour fit where only it is found.
-    ``always``: the learned fit. A finger found by neither says both reasons.
+    where both are found and agree (`agree`), the learned fit where they disagree or only it
+    is found, the colour fit where only it is found. ``always``: the learned fit.
+    ``refine``: the colour fit inside the segmenter's finger (`refined`, from
+    `refined_fingertips`) where it agrees with the learned fit, the learned fit where they
+    disagree or only it is found, the refined (there: unrestricted) colour fit where only it
+    is found. A finger found by neither says both reasons.
     """
+    if cfg.segmenter == "refine":
+        if refined is None:
+            raise ValueError("combine: 'refine' needs the refined colour fit")
+        colour = refined
     out = {}
     for f, got in learned.items():
         mine = colour[f] if colour is not None else None
@@ -398,10 +432,7 @@ def combine(colour: dict[str, Fingertip] | None, learned: dict[str, Fingertip],
         elif cfg.segmenter == "fallback":
             out[f] = mine
         else:
-            cos = float(np.clip(mine.axis @ got.axis, -1.0, 1.0))
-            agree = np.hypot(*(mine.tip - got.tip)) <= cfg.agree_px and \
-                np.degrees(np.arccos(cos)) <= cfg.agree_deg
-            out[f] = mine if agree else got
+            out[f] = mine if agree(mine, got, cfg) else got
     return out
 
 
@@ -410,18 +441,45 @@ def learned_fingertips(rgb: np.ndarray, colours: dict[str, tuple], cfg: LocatorC
     """The fingers located on the learned segmenter's labels (drawn in the flat palette of a
     clean render, `segmenter.palette_image`) by the colour fit; a failure's reason starts with
     ``segmenter:``."""
+    return learned_fit(rgb, colours, cfg, model)[0]
+
+
+def learned_fit(rgb: np.ndarray, colours: dict[str, tuple], cfg: LocatorCfg, model=None
+                ) -> tuple[dict[str, Fingertip], dict[str, np.ndarray]]:
+    """`learned_fingertips` and each finger's mask as the segmenter sees it (its largest
+    finger-like blob, holes filled; empty where none)."""
     from vistac_learn.data.segmenter import palette_image, segment_image
 
     flat = palette_image(segment_image(rgb, model), colours, TABLE_RGB)
-    found = colour_fingertips(flat, colours, cfg)
-    return {f: t if t.ok else Fingertip.missing(f"segmenter: {t.reason}")
-            for f, t in found.items()}
+    masks, why = explained_finger_masks(flat, colours, cfg)
+    found = fit_fingers(flat, masks, why, cfg)
+    return ({f: t if t.ok else Fingertip.missing(f"segmenter: {t.reason}")
+             for f, t in found.items()}, masks)
 
 
-def colour_fingertips(rgb: np.ndarray, colours: dict[str, tuple], cfg: LocatorCfg
-                      ) -> dict[str, Fingertip]:
-    """Every finger located by its drawn colour (steps 1-4 of the module's description)."""
-    masks, why = explained_finger_masks(rgb, colours, cfg)
+def refined_fingertips(rgb: np.ndarray, colours: dict[str, tuple], cfg: LocatorCfg,
+                       learned_masks: dict[str, np.ndarray]) -> dict[str, Fingertip]:
+    """The colour fit inside the segmenter's fingers: each finger's colour looked for only
+    within `LocatorCfg.refine_px` of its learned mask (the whole image where that is empty),
+    so the segmenter picks the blob and the colour fit draws its sub-pixel outline."""
+    k = 2 * cfg.refine_px + 1
+    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+    regions = {f: cv2.dilate(m.astype(np.uint8), kernel) > 0
+               for f, m in learned_masks.items() if m.any()}
+    return colour_fingertips(rgb, colours, cfg, regions)
+
+
+def colour_fingertips(rgb: np.ndarray, colours: dict[str, tuple], cfg: LocatorCfg,
+                      regions: dict[str, np.ndarray] | None = None) -> dict[str, Fingertip]:
+    """Every finger located by its drawn colour (steps 1-4 of the module's description), only
+    inside its entry of `regions` where it has one."""
+    return fit_fingers(rgb, *explained_finger_masks(rgb, colours, cfg, regions), cfg)
+
+
+def fit_fingers(rgb: np.ndarray, masks: dict[str, np.ndarray], why: dict[str, str],
+                cfg: LocatorCfg) -> dict[str, Fingertip]:
+    """Every finger located from its mask (`explained_finger_masks`; steps 2-4), missing with
+    its reason where `why` has one."""
     anyf = np.logical_or.reduce(list(masks.values()))
 
     @functools.cache

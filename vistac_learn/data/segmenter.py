@@ -6,11 +6,11 @@ net labels each pixel with the generator's mask codes (0 table, 1 object, 2 inde
 drawn in the flat palette of a clean render (`palette_image`), and the analytic locator runs on
 that, so its sub-pixel finger fit is reused unchanged.
 
-The net (`TinyUNet`) is a four-level U-Net with full-resolution output, about 60 k
-parameters, trained on generator images with exact labels (clean renders, the same renders
-perturbed by `vistac_learn.data.perturb`, and ``--preset photo --masks`` renders; see
-``benchmarks/train_segmenter.py``). Its weights ship with the package (`WEIGHTS`) and load with
-``torch.load(weights_only=True)``.
+The net (`TinyUNet`) is a five-level U-Net with full-resolution output (`DEFAULT_WIDTHS`, about
+230 k parameters), trained on generator images with exact labels (clean renders, the same
+renders perturbed by `vistac_learn.data.perturb`, and ``--preset photo --masks`` renders of
+three seeds; see ``benchmarks/train_segmenter.py``). Its weights ship with the package
+(`WEIGHTS`) and load with ``torch.load(weights_only=True)``.
 """
 
 from __future__ import annotations
@@ -30,6 +30,12 @@ WEIGHTS = Path(__file__).resolve().parent / "segmenter_weights.pt"
 FORMAT = "vistac-segmenter-1"
 """What a weights file says it is (its ``format`` entry)."""
 CLASSES = 4
+DEFAULT_WIDTHS = (8, 16, 32, 48, 64)
+"""Channels of the shipped net's levels (five: 1/16 resolution at the bottom, context enough to
+tell a finger from a table or object of its colour; about 25 CPU ms per 227 px image)."""
+NATIVE_PX = 227
+"""Side of the images the net was trained on (the generator's default): larger or smaller
+images are resized to it for the net, and its labels back (fingers of the size it learned)."""
 OBJECT_RGB = (60, 60, 140)  # an object colour far from the table and from both overlays
 
 
@@ -44,7 +50,7 @@ class TinyUNet(nn.Module):
     """A U-Net with `len(widths)` levels (each halving the resolution) and full-resolution
     logits of `CLASSES` classes; any image size (padded to a multiple of 2^(levels-1))."""
 
-    def __init__(self, widths: tuple[int, ...] = (8, 16, 24, 32)):
+    def __init__(self, widths: tuple[int, ...] = DEFAULT_WIDTHS):
         super().__init__()
         self.widths = tuple(int(w) for w in widths)
         self.down = nn.ModuleList()
@@ -138,8 +144,17 @@ def segment_image(rgb: np.ndarray, model: TinyUNet | None = None) -> np.ndarray:
     if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
         raise UserError(f"expected an (H, W, 3) uint8 RGB image, got {rgb.shape} {rgb.dtype}")
     model = model or default_segmenter()
+    h, w = rgb.shape[:2]
+    x = to_tensor(rgb)
+    scale = NATIVE_PX / max(h, w)
+    if abs(scale - 1.0) > 0.05:  # the scale it was trained at: fingers of the size it knows
+        x = nn.functional.interpolate(x, size=(round(h * scale), round(w * scale)),
+                                      mode="bilinear", align_corners=False)
     with torch.inference_mode():
-        logits = model(to_tensor(rgb).contiguous(memory_format=torch.channels_last))
+        logits = model(x.contiguous(memory_format=torch.channels_last))
+        if logits.shape[-2:] != (h, w):
+            logits = nn.functional.interpolate(logits, size=(h, w), mode="bilinear",
+                                               align_corners=False)
     return logits[0].argmax(0).to(torch.uint8).numpy()
 
 
