@@ -15,7 +15,9 @@ from vistac_learn.data.fingertips import (
     LocatorCfg,
     colour_fingertips,
     combine,
+    flat_render,
     learned_fingertips,
+    learned_fit,
     locate_fingertips,
     refined_fingertips,
 )
@@ -163,15 +165,21 @@ def test_the_default_locator_keeps_the_colour_fit_on_clean_renders(small_dataset
     picks the blob."""
     t = open_dataset(small_dataset)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
-    assert LocatorCfg().segmenter == "refine"
+    cfg = LocatorCfg()
+    assert cfg.segmenter == "refine"
     for row in range(4):
         rgb = read_rgb(t.image_path(row))
-        got, colour = locate_fingertips(rgb, colours), colour_fingertips(rgb, colours,
-                                                                          LocatorCfg())
+        assert flat_render(rgb)  # so the locator skips the segmenter here ...
+        learned, masks = learned_fit(rgb, colours, cfg)  # ... which would give the same
+        refined = combine(None, learned, cfg, refined_fingertips(rgb, colours, cfg, masks))
+        got, colour = locate_fingertips(rgb, colours), colour_fingertips(rgb, colours, cfg)
         for f in FINGERS:
-            assert got[f].ok and colour[f].ok
-            np.testing.assert_allclose(got[f].tip, colour[f].tip, atol=1e-9)
-            np.testing.assert_allclose(got[f].axis, colour[f].axis, atol=1e-9)
+            assert got[f].ok and colour[f].ok and refined[f].ok
+            for a in (got[f], refined[f]):
+                np.testing.assert_allclose(a.tip, colour[f].tip, atol=1e-9)
+                np.testing.assert_allclose(a.axis, colour[f].axis, atol=1e-9)
+    noisy = np.clip(rgb + np.random.default_rng(0).integers(-3, 4, rgb.shape), 0, 255)
+    assert not flat_render(noisy.astype(np.uint8))  # camera noise: the segmenter runs
 
 
 def test_segmenter_finds_the_fingers_of_a_clean_render_like_its_colours(small_dataset):
