@@ -124,6 +124,7 @@ CASES = [
     Case("train-jitter-nan", T + " --jitter nan", "--jitter"),
     Case("train-margin", T + " --margin 2", "--margin"),
     Case("train-appearance", T + " --appearance 1.5", "--appearance"),
+    Case("train-appearance-axes", T + " --appearance-axes 0", "--appearance-axes"),
     Case("train-size-8", T + " --size 8", "--size"),
     Case("train-size-too-small-for-model", T + " --model smallconv --variant edge-index "
          "--finger index --size 32", "--size"),
