@@ -161,15 +161,22 @@ def image_baseline(predict_one: Callable) -> Callable[[], Predictor]:
     return make
 
 
-# the surface-normal (geometric) baseline and the pinch baseline (closing axis, friction cone)
+# the surface-normal (geometric) baseline and the pinch baseline (closing axis, friction
+# cone): as `vistac evaluate` runs it (flat renders by their colours, any other image through
+# the learned segmenter), by colours alone, and always through the segmenter
 geometric_predictor = image_baseline(
     lambda img, colours, tables: predict_image(img, colours, FINGERS, GeometricCfg()))
-pinch_predictor = image_baseline(
-    lambda img, colours, tables: pinch_image(img, colours, FINGERS, dataset_friction(tables)))
-# the same, reading the image through the learned segmenter (flat colours) first
-segmented_pinch_predictor = image_baseline(
-    lambda img, colours, tables: pinch_image(img, colours, FINGERS, dataset_friction(tables),
-                                             PinchCfg(segmented=True)))
+
+
+def pinch_predictor_of(cfg: PinchCfg) -> Callable[[], Predictor]:
+    """The pinch baseline with these settings."""
+    return image_baseline(lambda img, colours, tables: pinch_image(
+        img, colours, FINGERS, dataset_friction(tables), cfg))
+
+
+PINCH_BASELINES = {"pinch baseline": PinchCfg(),
+                   "pinch baseline, colours only": PinchCfg(segmented=False),
+                   "pinch baseline, segmented": PinchCfg(segmented=True)}
 
 
 ORACLE = ", true fingertips"  # label suffix of a run given the true fingertips
@@ -185,8 +192,7 @@ def predictors(runs: dict[str, Path], baselines: bool = True, oracle: bool = Fal
                 for label, run in runs.items()}
     if baselines:
         out["geometric baseline"] = geometric_predictor
-        out["pinch baseline"] = pinch_predictor
-        out["pinch baseline, segmented"] = segmented_pinch_predictor
+        out |= {label: pinch_predictor_of(cfg) for label, cfg in PINCH_BASELINES.items()}
     return out
 
 

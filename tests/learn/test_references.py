@@ -248,3 +248,21 @@ def test_pinch_label_survives_a_rotated_image(angle):
     assert failures == 0
     for i, f in enumerate(("index", "thumb")):
         assert _angle_deg(pred[2 * i:2 * i + 2], expected_label(scene, f, 0.8)) < 1.0, f
+
+
+def test_pinch_reads_a_photograph_through_the_segmenter_and_a_flat_render_by_colour(monkeypatch):
+    """Default (`PinchCfg.segmented` None): a flat render by its colours (the exact outline),
+    anything else (here camera noise) through the learned segmenter."""
+    from vistac_learn.data import segmenter
+    from vistac_learn.evaluate.pinch import PinchCfg
+
+    img, _ = box_scene(0.0, 6.0, -5.0, 12.0, -8.0)
+    calls = []
+    real = segmenter.segment_image
+    monkeypatch.setattr(segmenter, "segment_image", lambda *a: calls.append(1) or real(*a))
+    plain, _ = predict_image(img, COLOURS, ("index", "thumb"), 0.8, PinchCfg(segmented=False))
+    auto, _ = predict_image(img, COLOURS, ("index", "thumb"), 0.8)
+    assert not calls and np.array_equal(plain, auto)
+    noisy = np.clip(img + np.random.default_rng(0).normal(0, 4, img.shape), 0, 255)
+    predict_image(noisy.astype(np.uint8), COLOURS, ("index", "thumb"), 0.8)
+    assert calls

@@ -42,6 +42,7 @@ from vistac_learn.data.fingertips import (
     LocatorCfg,
     colour_masks,
     finger_masks,
+    flat_render,
     locate_finger,
     object_mask,
     table_colour,
@@ -75,7 +76,9 @@ class PinchCfg:
         segmented: Read the image through the learned segmenter first
             (`vistac_learn.data.segmenter`: its labels drawn in a clean render's flat
             colours), so that textures, light and camera noise do not reach the colour
-            analysis; the outline is then the segmenter's, to about a pixel.
+            analysis; the outline is then the segmenter's, to about a pixel. None (the
+            default): only images that are not flat renders (`fingertips.flat_render`), whose
+            colours alone give the outline exactly.
     """
 
     locator: LocatorCfg = LocatorCfg()
@@ -88,7 +91,7 @@ class PinchCfg:
     step_deg: float = 0.25
     inlier_px: float = 1.0
     min_face: float = 0.25
-    segmented: bool = False
+    segmented: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -325,7 +328,8 @@ def predict_image(img: np.ndarray, colours: dict, fingers: tuple[str, ...], fric
         friction: Friction coefficient of the cone.
         cfg: Settings.
     """
-    if cfg.segmented:
+    through = cfg.segmented if cfg.segmented is not None else not flat_render(img)
+    if through:
         from vistac_learn.data.segmenter import palette_image, segment_image
 
         img = palette_image(segment_image(img), colours, TABLE_RGB)

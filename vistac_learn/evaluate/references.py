@@ -31,7 +31,7 @@ from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.pinch import PinchCfg, dataset_friction, pinch_predictions
 from vistac_learn.metrics.scoring import score
 
-CACHE_VERSION = 1  # bump when the pinch baseline's output changes; invalidates cached results
+CACHE_VERSION = 2  # bump when the pinch baseline's output changes; invalidates cached results
 LABELS = {"noise_floor": "noise floor (clean force)", "pinch": "pinch baseline"}
 
 
