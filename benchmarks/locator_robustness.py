@@ -38,15 +38,8 @@ from learnbench import ensure_dataset, headline_data, machine, save  # noqa: E40
 from vistac.dataset import FINGERS, open_dataset  # noqa: E402
 from vistac.dataset.splits import SplitCfg  # noqa: E402
 from vistac_learn.data.fingertip_table import simulator_tips  # noqa: E402
-from vistac_learn.data.fingertips import (  # noqa: E402
-    LOCATOR_VERSION,
-    LocatorCfg,
-    colour_fingertips,
-    combine,
-    learned_fit,
-    locate_fingertips,
-    refined_fingertips,
-)
+from vistac_learn.data.fingertips import LOCATOR_VERSION, LocatorCfg, colour_fingertips  # noqa: E402
+from vistac_learn.data.locator import combine, learned_fit, locate_fingertips, refined_fingertips  # noqa: E402
 from vistac_learn.data.perturb import (  # noqa: E402
     PERTURBATIONS,
     Scene,

@@ -99,7 +99,7 @@ def test_rotating_the_top_view_leaves_labels_and_tip_crops_unchanged(ds):
     turns every crop to its finger, so the model even sees (nearly) the same pixels."""
     import cv2
 
-    from vistac_learn.data.fingertips import locate_fingertips
+    from vistac_learn.data.locator import locate_fingertips
     from vistac_learn.data.variants import read_rgb, rotation_matrix
 
     t, _ = ds

@@ -10,10 +10,8 @@ import torch
 from vistac.dataset import FINGERS, open_dataset
 from vistac.errors import UserError
 from vistac_learn.data.fingertip_table import simulator_tips
-from vistac_learn.data.fingertips import (
-    Fingertip,
-    LocatorCfg,
-    colour_fingertips,
+from vistac_learn.data.fingertips import Fingertip, LocatorCfg, colour_fingertips
+from vistac_learn.data.locator import (
     combine,
     flat_render,
     learned_fingertips,

@@ -18,7 +18,8 @@ from vistac.dataset import FINGERS, DatasetTables
 from vistac.dataset.files import remove_stale_temporaries, write_table
 from vistac.errors import UserError
 from vistac_learn.data import fingertips
-from vistac_learn.data.fingertips import FIELDS, Fingertip, LocatorCfg, locate_fingertips
+from vistac_learn.data.fingertips import FIELDS, Fingertip, LocatorCfg
+from vistac_learn.data.locator import locate_fingertips
 from vistac_learn.data.variants import read_rgb
 
 

@@ -42,12 +42,12 @@ from vistac_learn.data.fingertips import (
     LocatorCfg,
     colour_masks,
     finger_masks,
-    flat_render,
     locate_finger,
     object_mask,
     table_colour,
     to_hsv,
 )
+from vistac_learn.data.locator import flat_render
 from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.geometric import image_predictions, sensor_direction
 
@@ -77,7 +77,7 @@ class PinchCfg:
             (`vistac_learn.data.segmenter`: its labels drawn in a clean render's flat
             colours), so that textures, light and camera noise do not reach the colour
             analysis; the outline is then the segmenter's, to about a pixel. None (the
-            default): only images that are not flat renders (`fingertips.flat_render`), whose
+            default): only images that are not flat renders (`locator.flat_render`), whose
             colours alone give the outline exactly.
     """
 
