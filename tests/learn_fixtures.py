@@ -17,6 +17,7 @@ import numpy as np
 import pandas as pd
 
 from vistac.dataset import FORMAT_VERSION
+from vistac.dataset.schema import PIXEL_CENTRE
 
 TABLE = (0.81, 0.81, 0.81)
 INDEX_RGB = (0.0, 0.85, 0.0)
@@ -28,9 +29,10 @@ FINGERS = ("index", "thumb")
 
 
 def _to_px(xy: np.ndarray, cam: np.ndarray, ppm: float, size: int) -> np.ndarray:
-    """World xy (.., 2) -> pixel (u, v), image y down."""
-    u = (xy[..., 0] - cam[0]) * ppm + size / 2
-    v = (cam[1] - xy[..., 1]) * ppm + size / 2
+    """World xy (.., 2) -> pixel (u, v), image y down, centres at integers (OpenCV's), so
+    drawn where the simulator draws (`vistac.dataset.schema.PIXEL_CENTRE`)."""
+    u = (xy[..., 0] - cam[0]) * ppm + size / 2 - PIXEL_CENTRE
+    v = (cam[1] - xy[..., 1]) * ppm + size / 2 - PIXEL_CENTRE
     return np.stack([u, v], axis=-1)
 
 

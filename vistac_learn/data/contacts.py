@@ -7,12 +7,13 @@ there (``normal_<finger>_x|y|z``, the finger's sensor frame) and the finger's di
 model reading the image can be taught: the contact point in pixels (u right, v down), the
 normal as (n_y, n_z), the label's coordinates, and the finger's axis as an image direction.
 
-The projection is the plain top view, ``u = (x - camera_x) * px_per_m + W / 2``,
-``v = -(y - camera_y) * px_per_m + H / 2``. A configuration whose camera was rolled or tilted
-(columns ``camera_roll_deg``, ``camera_tilt_deg``), whose drawn fingers were displaced
-(``overlay_<finger>_*``), or that lacks any of the columns (an ingested recording) has no truth:
-its rows are NaN and `ContactTruth.known` is False there, so the auxiliary losses skip it and
-training on force labels alone still works.
+The projection is the plain top view, ``u = (x - camera_x) * px_per_m + W / 2 - 0.5``,
+``v = -(y - camera_y) * px_per_m + H / 2 - 0.5``: pixel centres at integers, as the located
+fingertips and the crops have them (`vistac.dataset.schema.PIXEL_CENTRE`). A configuration
+whose camera was rolled or tilted (columns ``camera_roll_deg``, ``camera_tilt_deg``), whose
+drawn fingers were displaced (``overlay_<finger>_*``), or that lacks any of the columns (an
+ingested recording) has no truth: its rows are NaN and `ContactTruth.known` is False there, so
+the auxiliary losses skip it and training on force labels alone still works.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vistac.dataset import FINGERS, DatasetTables
-from vistac.dataset.schema import normal_columns
+from vistac.dataset.schema import PIXEL_CENTRE, normal_columns
 from vistac_learn.data.variants import read_rgb
 
 
@@ -72,7 +73,8 @@ def contact_truth(tables: DatasetTables) -> ContactTruth:
         cx, cy = c["camera_x"].to_numpy(float), c["camera_y"].to_numpy(float)
         for i, f in enumerate(FINGERS):
             x, y = c[f"target_{f}_x"].to_numpy(float), c[f"target_{f}_y"].to_numpy(float)
-            point[:, i] = np.stack([(x - cx) * s + w / 2, -(y - cy) * s + h / 2], axis=1)
+            point[:, i] = np.stack([(x - cx) * s + w / 2, -(y - cy) * s + h / 2],
+                                   axis=1) - PIXEL_CENTRE
             nv = c[normal_columns(f)[1:]].to_numpy(float)
             normal[:, i] = _unit(nv)
             ax = c[[f"approach_{f}_x", f"approach_{f}_y"]].to_numpy(float)

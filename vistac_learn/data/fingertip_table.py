@@ -16,6 +16,7 @@ from tqdm import tqdm
 
 from vistac.dataset import FINGERS, DatasetTables
 from vistac.dataset.files import remove_stale_temporaries, write_table
+from vistac.dataset.schema import PIXEL_CENTRE
 from vistac.errors import UserError
 from vistac_learn.data import fingertips
 from vistac_learn.data.fingertips import FIELDS, Fingertip, LocatorCfg
@@ -26,7 +27,9 @@ from vistac_learn.data.variants import read_rgb
 def simulator_tips(tables: DatasetTables, row: int, size: int
                    ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The simulator's fingertip centre (pixels) and unit finger axis (image u, v) of each finger
-    of a configuration, from ``configs.parquet`` (what the locator is measured against).
+    of a configuration, from ``configs.parquet`` (what the locator is measured against), in the
+    locator's coordinates: pixel centres at integers (the projection's continuous coordinates
+    less `PIXEL_CENTRE`; comparing the two unconverted put every located tip 0.71 px off).
 
     A perspective camera (``camera_fovy_deg`` > 0, the ``photo`` preset) projects the fingertip
     at the hand's height above the table (`vistac_sim.render.shot.Shot.project`); the clean
@@ -44,7 +47,7 @@ def simulator_tips(tables: DatasetTables, row: int, size: int
     out = {}
     for f in FINGERS:
         tip = np.array([(c[f"tip_{f}_x"] - c["camera_x"]) * ppm + size / 2,
-                        -(c[f"tip_{f}_y"] - c["camera_y"]) * ppm + size / 2])
+                        -(c[f"tip_{f}_y"] - c["camera_y"]) * ppm + size / 2]) - PIXEL_CENTRE
         axis = np.array([c[f"approach_{f}_x"], -c[f"approach_{f}_y"]], float)
         out[f] = (tip, axis / np.linalg.norm(axis))
     return out
@@ -68,7 +71,7 @@ def _perspective_tips(tables: DatasetTables, c: pd.Series, size: int
         step = np.array([c[f"approach_{f}_x"], c[f"approach_{f}_y"], 0.0])
         uv = view.project(np.stack([tip, tip + 1e-3 * step / np.linalg.norm(step)]))
         axis = uv[1] - uv[0]
-        out[f] = (uv[0], axis / np.linalg.norm(axis))
+        out[f] = (uv[0] - PIXEL_CENTRE, axis / np.linalg.norm(axis))
     return out
 
 

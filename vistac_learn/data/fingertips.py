@@ -54,7 +54,7 @@ import numpy as np
 from vistac.config import Config, param
 from vistac_learn.data.variants import read_rgb  # noqa: F401 (re-exported: images as the locator reads them)
 
-LOCATOR_VERSION = 4  # bump when the locator's output changes; invalidates cached tables
+LOCATOR_VERSION = 5  # bump when the locator's output changes; invalidates cached tables
 FIELDS = ("tip_u", "tip_v", "axis_u", "axis_v", "radius")
 
 
@@ -321,6 +321,17 @@ def _object_ahead(obj: np.ndarray, end: np.ndarray, a: np.ndarray, r: float, pro
     return float(obj[y0:y1, x0:x1][disc].mean()) if disc.any() else 0.0
 
 
+def _open_border_distance(mask: np.ndarray, r: float) -> np.ndarray:
+    """Distance of each pixel to the finger's outline where the image border is not outline:
+    the mask extended past the border by repeating its edge pixels (2 r + 1 of them). A finger
+    cut by the border keeps its full width up to the border, so the centre line of a short
+    stub is as long as the stub (with the border as outline it shrank to a spot round the
+    tip, and its direction was off by up to 47 deg on photo renders)."""
+    p = int(np.ceil(2 * r)) + 1
+    ext = cv2.copyMakeBorder(mask.astype(np.uint8), p, p, p, p, cv2.BORDER_REPLICATE)
+    return cv2.distanceTransform(ext, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)[p:-p, p:-p]
+
+
 def locate_finger(mask: np.ndarray, obj: np.ndarray | Callable[[], np.ndarray],
                   other: np.ndarray | None,
                   cfg: LocatorCfg) -> Fingertip:
@@ -343,7 +354,7 @@ def locate_finger(mask: np.ndarray, obj: np.ndarray | Callable[[], np.ndarray],
     dt = cv2.distanceTransform(np.pad(mask.astype(np.uint8), 1), cv2.DIST_L2,
                                cv2.DIST_MASK_PRECISE)[1:-1, 1:-1]
     r = float(np.percentile(dt[mask], 99))
-    vs, us = np.nonzero(dt >= cfg.ridge_frac * r)
+    vs, us = np.nonzero(mask & (_open_border_distance(mask, r) >= cfg.ridge_frac * r))
     if len(us) < 5:
         return Fingertip.missing("no centre line (the blob is not finger-shaped)")
     line = cv2.fitLine(np.stack([us, vs], 1).astype(np.float32), cv2.DIST_L2, 0, 0.01, 0.01)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from vistac.dataset.schema import MASK_VALUES
+from vistac.dataset.schema import MASK_VALUES, PIXEL_CENTRE
 from vistac_sim.render.outlines import many_finger_shapes, polygons_box
 from vistac_sim.render.shot import DrawnStyle, Shot
 
@@ -60,7 +60,7 @@ def fill_mask(mask: np.ndarray, shapes: list[tuple[list, list]]) -> np.ndarray:
 
 def _fill(img: np.ndarray, polys: list[np.ndarray], colour, line: int) -> None:
     """Fill each convex polygon (one at a time: overlaps stay filled), vertices in OpenCV's
-    fixed point with pixel centres at integer + 0.5 in our coordinates."""
+    fixed point (pixel centres at integers; ours at + `PIXEL_CENTRE`)."""
     for p in polys:
-        fixed = np.round((np.asarray(p, float) - 0.5) * (1 << SHIFT)).astype(np.int32)
+        fixed = np.round((np.asarray(p, float) - PIXEL_CENTRE) * (1 << SHIFT)).astype(np.int32)
         cv2.fillConvexPoly(img, fixed, colour, line, SHIFT)
