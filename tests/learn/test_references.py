@@ -236,6 +236,23 @@ def test_the_pinch_cache_follows_the_labels(tmp_path):
     assert second["metrics"] != first["metrics"]
 
 
+def test_the_pinch_cache_follows_the_locator(tmp_path, monkeypatch):
+    """The pinch baseline locates the fingers itself: a new locator version or other segmenter
+    weights must not be served the old locator's results."""
+    import vistac_learn.data.fingertips as fingertips
+    import vistac_learn.data.segmenter as segmenter
+    from vistac_learn.evaluate.pinch import PinchCfg
+
+    t = open_dataset(make_dataset(tmp_path / "ds", n=4, repeats=2, size=64))
+    rows, key = t.rows(None), ("index",)
+    before = refs_mod._cache_path(t, rows, key, PinchCfg(), tmp_path)
+    monkeypatch.setattr(segmenter, "weights_digest", lambda *a, **k: "other weights")
+    weights = refs_mod._cache_path(t, rows, key, PinchCfg(), tmp_path)
+    monkeypatch.setattr(fingertips, "LOCATOR_VERSION", fingertips.LOCATOR_VERSION + 1)
+    version = refs_mod._cache_path(t, rows, key, PinchCfg(), tmp_path)
+    assert len({before, weights, version}) == 3
+
+
 @pytest.mark.parametrize("angle", [25.0, 130.0])
 def test_pinch_label_survives_a_rotated_image(angle):
     """A rotated image (bilinear: mixed colours along every edge) gives the same sensor-frame

@@ -121,13 +121,21 @@ def located_in(tables: DatasetTables, rows: np.ndarray, images: list[np.ndarray]
     return FingertipTable(pd.DataFrame(recs))
 
 
-def _cache_path(tables: DatasetTables, cfg: LocatorCfg, cache_dir: Path | None) -> Path:
-    h = hashlib.sha256()
-    h.update(json.dumps({"v": fingertips.LOCATOR_VERSION, **asdict(cfg)}, sort_keys=True).encode())
+def locator_fingerprint(cfg: LocatorCfg) -> str:
+    """What a located fingertip depends on besides the image: the locator's version, its
+    settings and, when the segmenter is used, a digest of its weights (retrained weights locate
+    anew). Part of every cache key of results made from located fingertips."""
+    key = json.dumps({"v": fingertips.LOCATOR_VERSION, **asdict(cfg)}, sort_keys=True)
     if cfg.segmenter != "off":
         from vistac_learn.data.segmenter import weights_digest
 
-        h.update(weights_digest().encode())  # retrained weights locate anew
+        key += weights_digest()
+    return key
+
+
+def _cache_path(tables: DatasetTables, cfg: LocatorCfg, cache_dir: Path | None) -> Path:
+    h = hashlib.sha256()
+    h.update(locator_fingerprint(cfg).encode())
     h.update(tables.image_fingerprint().encode())  # labels do not move a fingertip
     folder = cache_dir if cache_dir is not None else tables.root / "cache"
     return Path(folder) / f"fingertips-{h.hexdigest()[:20]}.parquet"

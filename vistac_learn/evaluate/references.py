@@ -27,6 +27,7 @@ import numpy as np
 
 from vistac.dataset import DatasetTables
 from vistac.dataset.files import atomic_write_json
+from vistac_learn.data.fingertip_table import locator_fingerprint
 from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.pinch import PinchCfg, dataset_friction, pinch_predictions
 from vistac_learn.metrics.scoring import score
@@ -77,6 +78,7 @@ def _cache_path(tables: DatasetTables, rows: np.ndarray, fingers: tuple[str, ...
     h = hashlib.sha256()
     h.update(json.dumps({"v": CACHE_VERSION, "cfg": dataclasses.asdict(cfg),
                          "fingers": list(fingers)}, sort_keys=True).encode())
+    h.update(locator_fingerprint(cfg.locator).encode())  # it locates the fingers itself
     h.update(np.asarray(rows, dtype=np.int64).tobytes())
     h.update(tables.fingerprint().encode())  # manifest, configurations and images
     for f in fingers:  # and the labels it is scored against (not in the fingerprint)
