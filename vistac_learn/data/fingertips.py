@@ -15,10 +15,10 @@ Steps, all whole-array OpenCV / NumPy:
    the same disc and its holes filled (pixels lost to noise or glare). A blob too small,
    covering a large part of the image, or not filling its bounding rectangle like a capsule is
    rejected with its reason (the next candidate hue is tried first).
-2. **Axis.** A line fitted (least squares) through the ridge of the mask's distance transform,
-   the pixels at least `ridge_frac` of the finger's radius inside its outline: the finger's centre
-   line. Unlike a PCA of the whole blob it is not tilted when the image border clips the finger
-   obliquely. Radius r: the 99th percentile of the distance transform (the widest part, the tip).
+2. **Axis.** A line fitted (least squares) through the ridge of the mask's distance transform
+   (the image border not counted as outline), the pixels at least `ridge_frac` of the finger's
+   radius inside its outline: the finger's centre line, not tilted when the border clips the
+   finger. Radius r: the 99th percentile of the distance transform (the widest part, the tip).
 3. **Which end is the tip.** The ends are the extreme projections on the axis of the mask's
    pixels near the axis. An end that touches the image border is the back of the finger;
    otherwise the tip is the end clearly nearer the other finger (the fingers face each other
