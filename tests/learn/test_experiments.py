@@ -17,6 +17,7 @@ import time
 import numpy as np
 import pandas as pd
 import pytest
+import torch
 from learn_fixtures import make_dataset
 
 from vistac.cli import main
@@ -89,7 +90,9 @@ def test_a_killed_experiment_continues_where_it_stopped(data, sim2real, tmp_path
     stops early, and the result is the clean run's (same cells, same numbers)."""
     out = tmp_path / "cut"
     argv = _sim2real_argv(data, out, seeds="1")
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    # the killed part runs in a child: same torch threads as here (float sums depend on them)
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path),
+               OMP_NUM_THREADS=str(torch.get_num_threads()))
     proc = subprocess.Popen([sys.executable, "-m", "vistac.cli", *argv], env=env,
                             stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
