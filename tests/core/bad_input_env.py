@@ -67,5 +67,5 @@ def env(tmp_path_factory):
              "img": data / "images", "mixed": mixed, "partial": partial,
              "file": root / "file.txt", "missing": root / "missing",
              **{name: root / f"{name}.yaml" for name in scenes}}
+    torch.set_num_threads(threads)  # the tests that use it ask for one thread themselves
     yield {"root": root, "paths": {k: str(v) for k, v in paths.items()}, "reruns": {}}
-    torch.set_num_threads(threads)
