@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 
 from vistac.dataset import FINGERS, open_dataset
+from vistac_learn.data.finger_masks import colour_mask, finger_masks
 from vistac_learn.data.fingertip_table import fingertip_table, located_in, simulator_tips
-from vistac_learn.data.fingertips import Fingertip, LocatorCfg, colour_mask, finger_masks
+from vistac_learn.data.fingertips import Fingertip, LocatorCfg
 from vistac_learn.data.locator import locate_fingertips
 from vistac_learn.data.perturb import (
     PERTURBATIONS,

@@ -17,13 +17,8 @@ import numpy as np
 
 from vistac.dataset.schema import TABLE_RGB
 from vistac.errors import UserError
-from vistac_learn.data.fingertips import (
-    Fingertip,
-    LocatorCfg,
-    colour_fingertips,
-    explained_finger_masks,
-    fit_fingers,
-)
+from vistac_learn.data.finger_masks import explained_finger_masks
+from vistac_learn.data.fingertips import Fingertip, LocatorCfg, colour_fingertips, fit_fingers
 
 FLAT_COLOURS = 8  # a flat render has its four colours (table, object, two overlays)
 

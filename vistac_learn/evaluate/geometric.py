@@ -29,10 +29,10 @@ import numpy as np
 from tqdm import tqdm
 
 from vistac.dataset import FINGERS, DatasetTables
+from vistac_learn.data.finger_masks import finger_masks
 from vistac_learn.data.fingertips import (
     Fingertip,
     LocatorCfg,
-    finger_masks,
     locate_finger,
     object_mask,
     read_rgb,

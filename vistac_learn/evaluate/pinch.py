@@ -37,15 +37,13 @@ import numpy as np
 
 from vistac.dataset import FINGERS, DatasetTables
 from vistac.dataset.schema import TABLE_RGB
+from vistac_learn.data.finger_masks import colour_masks, finger_masks, to_hsv
 from vistac_learn.data.fingertips import (
     Fingertip,
     LocatorCfg,
-    colour_masks,
-    finger_masks,
     locate_finger,
     object_mask,
     table_colour,
-    to_hsv,
 )
 from vistac_learn.data.locator import flat_render
 from vistac_learn.data.samples import RotationCfg
