@@ -134,7 +134,7 @@ def test_the_final_merge_holds_one_bucket_of_ids_at_a_time(tmp_path, small_datas
         pd.testing.assert_frame_equal(merged.read().to_pandas(),
                                       pd.read_parquet(small_dataset / name))
     assert sorted(p.name for p in (tmp_path / "d").iterdir()) == [
-        "configs.parquet", "images", "manifest.json", "presses.parquet"]
+        "README.md", "configs.parquet", "images", "manifest.json", "presses.parquet"]
     made = json.loads((tmp_path / "d" / "manifest.json").read_text())
     reference = json.loads((small_dataset / "manifest.json").read_text())
     for key in ("counts", "redraws", "per_object"):

@@ -27,6 +27,8 @@ IMAGES = "images"
 MASKS = "masks"  # optional (`--masks`): one label PNG per image, named as the image
 MASK_VALUES = {"table": 0, "object": 1, "index": 2, "thumb": 3}  # a mask's pixel values
 PARTIAL = ".partial"  # an unfinished `vistac generate` run keeps its state here
+CARD = "README.md"  # the dataset card (vistac.dataset.card), Hugging Face convention
+REJECTED = "rejected.csv"  # ingest only: every rejected grasp with its reason
 SPLITS = ("train", "val", "test")
 FINGERS = ("index", "thumb")  # the order of every per-finger array: (index, thumb)
 

@@ -19,6 +19,7 @@ import numpy as np
 import pyarrow as pa
 
 from vistac.dataset import FORMAT_VERSION, MANIFEST, assign_splits
+from vistac.dataset.card import write_card
 from vistac.dataset.files import (
     atomic_write_json,
     remove_stale_temporaries,
@@ -317,6 +318,7 @@ def finalize(out: Path, n_chunks: int, n: int, manifest: dict, split_by: str, fr
                 "redraws": {"total": sum(reasons.values()),
                             "by_reason": dict(sorted(reasons.items()))},
                 "per_object": per_object}
+    write_card(out, manifest)
     write_manifest(out, manifest)
     shutil.rmtree(out / PARTIAL, ignore_errors=True)
     return manifest

@@ -19,6 +19,7 @@ from vistac.dataset import (
     press_row,
     unit_labels,
 )
+from vistac.dataset.card import write_card
 from vistac.dataset.ingest.config import IngestCfg, IngestSources
 from vistac.dataset.ingest.preprocess import REASONS, Grasp, preprocess
 from vistac.dataset.ingest.readers import (
@@ -137,6 +138,7 @@ def _ingest(src: IngestSources, out: str | Path, cfg: IngestCfg | None) -> dict:
                                                  "repeat", "reason", "detail"])
         files.atomic_write_bytes(tmp / "rejected.csv", rej_df.to_csv(index=False).encode())
         manifest = _manifest(src, cfg, cfg_df, prs_df, rej_df, dropped, check, t0)
+        write_card(tmp, manifest)
         files.write_manifest(tmp, manifest)  # last
         if out.exists():
             out.rmdir()  # checked empty above
