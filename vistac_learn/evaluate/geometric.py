@@ -29,6 +29,7 @@ import numpy as np
 from tqdm import tqdm
 
 from vistac.dataset import FINGERS, DatasetTables
+from vistac.dataset.frames import image_to_sensor
 from vistac_learn.data.finger_masks import finger_masks
 from vistac_learn.data.fingertips import (
     Fingertip,
@@ -58,10 +59,7 @@ class GeometricCfg:
 def sensor_direction(n: np.ndarray, a: np.ndarray, finger: str) -> np.ndarray:
     """(r_y, r_z) of an image-plane direction `n` in the sensor frame of a finger with axis `a`
     (both unit, image (u, v) coordinates)."""
-    aw = np.array([a[0], -a[1]])
-    nw = np.array([n[0], -n[1]])
-    y_ax = np.array([-aw[1], aw[0]]) if finger == "index" else np.array([aw[1], -aw[0]])
-    return np.array([nw @ y_ax, nw @ aw])
+    return image_to_sensor(n, a, finger)
 
 
 def geometric_direction(tip: Fingertip, obj: np.ndarray, finger: str,
