@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from vistac.errors import UserError
+from vistac.folder_kinds import EVALUATION, mark
 from vistac.folder_lock import hold
 from vistac.outputs import Dataset, Evaluation, Report, Run
 
@@ -200,7 +201,8 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
         except UserError as exc:
             raise UserError(f"--data {exc}") from None
     out = check_out_dir(cfg.out_dir)
-    with hold(out, "evaluate"):
+    with hold(out, "evaluate"):  # refuses a folder of another kind, or of a user's files
+        mark(out, EVALUATION)
         res = _score(cfg, out, progress)
     return Evaluation(out, res)
 

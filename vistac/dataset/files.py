@@ -6,6 +6,7 @@ the clean-up of the temporaries a killed process left behind (`remove_stale_temp
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import platform
@@ -31,14 +32,36 @@ def temporary_path(path: Path) -> Path:
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write `data` to `path` through a temporary file and a rename (none is left on error)."""
+    """Write `data` to `path` through a temporary file and a rename (none is left on error).
+
+    Raises:
+        UserError: the file cannot be written (a full disk, no permission), naming it.
+    """
     tmp = temporary_path(path)
     try:
         with open(tmp, "wb") as fh:
             fh.write(data)
         os.replace(tmp, path)
+    except OSError as exc:
+        raise write_error(path, exc) from None
     finally:
         tmp.unlink(missing_ok=True)
+
+
+class WriteError(UserError, OSError):
+    """A file that could not be written, in one line naming it (an `OSError` too, so that a
+    caller that tolerates a failed write, e.g. of a cache, still does)."""
+
+
+def write_error(path: Path, exc: OSError) -> WriteError:
+    """The one line of a write to `path` that failed with `exc`; a full disk says what to do
+    (the system's error for a full disk names neither the file nor that)."""
+    reason = exc.strerror or str(exc)
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        reason += "; free some space there and run the command again"
+    err = WriteError(f"{path}: cannot be written: {reason}")
+    err.errno = exc.errno
+    return err
 
 
 def atomic_write_json(path: Path, obj: Any) -> None:
@@ -73,6 +96,8 @@ def write_row_groups(path: Path, schema: pa.Schema, tables: Iterable[pa.Table]) 
             for table in tables:
                 writer.write_table(table, row_group_size=max(1, len(table)))
         os.replace(tmp, path)
+    except OSError as exc:
+        raise write_error(path, exc) from None
     finally:
         tmp.unlink(missing_ok=True)
 

@@ -6,6 +6,7 @@ degrees, 0 straight into the sensor pad.
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import matplotlib
@@ -13,6 +14,17 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+
+from vistac.dataset.files import atomic_write_bytes  # noqa: E402
+
+
+def save_png(fig, path: Path) -> None:
+    """Save `fig` as a PNG at `path` whole or not at all (a temporary file and a rename), and
+    close it."""
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    plt.close(fig)
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -85,8 +97,7 @@ def plot_cones(
         ax.set_ylabel("r_z", fontsize=8)
         ax.tick_params(labelsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_png(fig, path)
     return path
 
 
@@ -119,8 +130,7 @@ def plot_error_hist(error_pct: np.ndarray, path: Path, label: str = "") -> Path:
     ax.set_title(f"{label} {len(err) - pos.size} of {len(err)} predictions in the cone (error 0)",
                  fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_png(fig, path)
     return path
 
 
@@ -169,6 +179,5 @@ def plot_rotation_spread(
     ax.set_title(f"{label} spread across rotations: median circular std {spread:.2f} deg",
                  fontsize=9)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_png(fig, path)
     return path

@@ -18,6 +18,7 @@ pairs). With ``--tta`` the raw predictions of a configuration's rotations are av
 from __future__ import annotations
 
 import dataclasses
+import io
 import json
 import time
 from pathlib import Path
@@ -112,7 +113,9 @@ def _write_outputs(
         frame[f"pred_{f}_y"], frame[f"pred_{f}_z"] = pred[:, 2 * i], pred[:, 2 * i + 1]
         for k, v in res[f]["per_sample"].items():
             frame[f"{f}_{k}"] = v
-    pd.DataFrame(frame).to_parquet(out / "predictions.parquet", index=False)
+    table_bytes = io.BytesIO()  # written whole or not at all, like every file here
+    pd.DataFrame(frame).to_parquet(table_bytes, index=False)
+    atomic_write_bytes(out / "predictions.parquet", table_bytes.getvalue())
     summary = {f: {k: v for k, v in r.items() if np.isscalar(v)} for f, r in res.items()}
     table = format_table([(f"{label} ({f})", summary[f]) for f in fingers]
                          + reference_entries(refs, fingers))
