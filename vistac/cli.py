@@ -26,6 +26,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                  "simulate presses and write a visuo-tactile dataset"),
     "ingest": ("vistac.dataset.ingest.command",
                "turn RH8D/FTS-3 recordings and their images into a dataset"),
+    "inspect": ("vistac_learn.inspect.command",
+                "see a dataset (labels on its images, distributions, recordings) or a run"),
     "models": ("vistac_learn.models.command",
                "list the model zoo with parameters and multiply-accumulates"),
     "train": ("vistac_learn.train.command", "train a model on a dataset"),

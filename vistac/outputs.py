@@ -80,6 +80,23 @@ class Dataset:
             raise UserError(f"{path}: cannot read the image")
         return bgr[:, :, ::-1].copy()
 
+    def inspect(self, out: str | Path | None = None, **settings: Any):
+        """Inspect the dataset (`vistac inspect`): a report folder with its summary, contact
+        sheet, distributions and recordings pages, and the dataset card if it had none.
+
+        Args:
+            out: The report folder (default: ``<path>-inspect`` beside the dataset).
+            settings: Fields of `vistac_learn.inspect.config.InspectCfg` (``per_group``, ...).
+
+        Returns:
+            The `vistac_learn.inspect.report.InspectReport` (``out``, ``lines``, ``files``).
+        """
+        from vistac_learn.inspect.config import InspectCfg
+        from vistac_learn.inspect.report import inspect_dataset
+
+        cfg = InspectCfg(out=None if out is None else str(out), **settings)
+        return inspect_dataset(self.path, cfg)
+
     def __len__(self) -> int:
         return len(self.configs)
 
