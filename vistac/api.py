@@ -21,9 +21,10 @@ configs, calls the same function and prints its summary. Hence:
 - the same config and seed give the same bytes from Python and from the CLI.
 
 This module imports neither MuJoCo nor torch; each function imports its half when called.
-Generation with worker processes starts a fork server that imports the calling script's main
-module, so call `generate` from a script under ``if __name__ == "__main__":`` (as with any
-`multiprocessing` start method but "fork").
+Generation with worker processes starts a fork server that does not import the caller's main
+module, so the default ``workers`` works from a script (with or without the
+``if __name__ == "__main__":`` guard), ``python -c``, a script read on stdin, `runpy` and a
+notebook alike (tests/core/test_entry_points.py).
 """
 
 from __future__ import annotations

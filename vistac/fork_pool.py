@@ -5,13 +5,16 @@ back with the worker's traceback (`RemoteTraceback`), a dead worker is `WorkerDi
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import importlib.util
 import multiprocessing as mp
 import os
 import pickle
 import signal
+import sys
 import traceback
+import types
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import closing
@@ -43,8 +46,11 @@ class ForkServer:
     ignores SIGINT (this process stops it) and exits when this process does; `stop` waits for it,
     so its workers' CPU time counts among this process's children (`getrusage`).
 
-    Use it as a context manager (`start` on entry, `stop` on exit). The server imports the
-    calling script's main module, as every `multiprocessing` start method but "fork" does.
+    Use it as a context manager (`start` on entry, `stop` on exit). Unlike `multiprocessing`'s
+    own "spawn" and "forkserver", the server does not import the calling program's main module
+    (`_without_main`): its work is the project's own functions, so it starts the same from a
+    script (guarded by ``if __name__ == "__main__":`` or not), ``python -c``, a script read on
+    stdin, `runpy`, a notebook or an embedded interpreter.
 
     Args:
         preload: Modules the server imports before it forks any worker.
@@ -62,7 +68,8 @@ class ForkServer:
             self._conn, theirs = ctx.Pipe()
             self._process = ctx.Process(target=_serve_forks, args=(theirs, self.preload),
                                         name="vistac-fork-server", daemon=True)
-            self._process.start()
+            with _without_main():
+                self._process.start()
             theirs.close()
         return self
 
@@ -103,10 +110,6 @@ class ForkServer:
         code = getattr(process, "exitcode", None)
         msg = "the fork server of the workers died" + (
             f" (exit status {code})" if code is not None else "")
-        if code == 1:  # an exception at start-up: mostly the main module run again in it
-            msg += ("; a script that starts workers (e.g. vistac.generate(..., workers=2)) must "
-                    "do so under `if __name__ == \"__main__\":`, since the server imports the "
-                    "script's main module")
         return msg
 
     def _batch(self, job: Callable[[Any], Any], workers: int,
@@ -188,6 +191,28 @@ class PoolRunner(Runner):
                 else:
                     exc, text = value
                     raise exc from RemoteTraceback(text)
+
+
+@contextlib.contextmanager
+def _without_main() -> Iterator[None]:
+    """While a process is started by "spawn": a bare ``__main__`` module in place of this
+    program's, so that the new process does not import (run) the program's main module.
+
+    Spawn records the main module's file or module name for the child to import again; a script
+    read on stdin (``<stdin>``), a notebook's or an embedded interpreter's main module cannot be
+    imported there (the child dies at start-up), and a script without the ``__main__`` guard
+    would run again. The start itself writes what the child needs at once, so the real module
+    is back before `Process.start` returns.
+    """
+    main = sys.modules.get("__main__")
+    sys.modules["__main__"] = types.ModuleType("__main__")
+    try:
+        yield
+    finally:
+        if main is None:
+            del sys.modules["__main__"]
+        else:
+            sys.modules["__main__"] = main
 
 
 def _name(job: Any) -> str:
