@@ -19,7 +19,14 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from vistac.config import Config, ConfigError, add_options, from_options, param
+from vistac.config import (
+    Config,
+    ConfigError,
+    RawDescriptionHelpFormatter,
+    add_options,
+    from_options,
+    param,
+)
 from vistac.dataset import SplitCfg
 
 
@@ -138,7 +145,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
     """Register `vistac demo`."""
     p = sub.add_parser(
         "demo", help="generate, train, evaluate and report on a small default",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+        description=__doc__, formatter_class=RawDescriptionHelpFormatter)
     add_options(p, DemoCfg, OPTIONS)
     p.set_defaults(func=_handler)
 

@@ -26,10 +26,10 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
 from vistac.dataset import FINGERS, DatasetTables
 from vistac.dataset.frames import image_to_sensor
+from vistac.progress import bar as progress_bar
 from vistac_learn.data.finger_masks import finger_masks
 from vistac_learn.data.fingertips import (
     Fingertip,
@@ -150,7 +150,7 @@ def image_predictions(
     rows = np.asarray(rows, dtype=np.int64)
     bg = tuple(int(round(c * 255)) for c in tables.table_rgb)
     preds, item_row, item_rot, failures = [], [], [], 0
-    for row in tqdm(rows, desc=desc, leave=False, disable=not progress):
+    for row in progress_bar(rows, desc=desc, leave=False, enabled=progress):
         img = read_rgb(tables.image_path(row))
         h, w = img.shape[:2]
         for k, ang in enumerate(rotation_angles(rotations, row)):

@@ -27,11 +27,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from vistac.config import to_dict
 from vistac.dataset.files import atomic_write_bytes, atomic_write_json
 from vistac.errors import UserError
+from vistac.progress import bar as progress_bar
 from vistac_learn.train.job import JobCfg, JobResult, LocalRunner
 from vistac_learn.train.loop import TrainingDiverged
 
@@ -195,8 +195,8 @@ def run_cells(out: Path, cells: Sequence[Cell], columns: Sequence[str],
     todo = [c for c in cells if c.key not in rows]
     if max_cells is not None:
         todo = todo[:max_cells]
-    bar = tqdm(total=len(cells), initial=len(rows), desc="cells", unit="cell",
-               disable=not progress)
+    bar = progress_bar(total=len(cells), initial=len(rows), desc="cells", unit="cell",
+                       enabled=progress, lines="each")
     if rows:
         on_rows(ordered())
     for phase in sorted({c.phase for c in todo}):

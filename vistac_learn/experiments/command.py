@@ -8,25 +8,38 @@ runs (e.g. ``--epochs``, ``--model``, ``--protocol``), as in `vistac tune`.
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
 from pathlib import Path
 
 from vistac.config import (
+    Config,
     ConfigError,
     HelpFormatter,
     add_options,
     apply,
     flag_labels,
     flag_of,
+    from_options,
     option_values,
+    param,
 )
 from vistac.dataset.files import check_out_dir
 from vistac.errors import UserError
-from vistac_learn.train.command import OPTIONS
-from vistac_learn.train.config import PROTOCOLS, TrainCfg, protocol_cfg
+from vistac.progress import add_progress_option, progress_wanted
+from vistac_learn.train.command import OPTIONS, add_train_options
+from vistac_learn.train.config import TrainCfg, protocol_cfg
 
 # what each cell sets itself, so not an option of the experiments
 PER_CELL = ("seed", "train_fraction", "init", "freeze", "train_split", "val_split")
 TRAIN_OPTIONS = tuple(o for o in OPTIONS if o not in PER_CELL)
+
+
+@dataclass(frozen=True)
+class ExperimentCommandCfg(Config):
+    """The options of `vistac experiment` besides the experiment's config and the runs'."""
+
+    max_cells: int | None = param(None, ge=1, help="stop after this many new cells (run again "
+                                  "to continue)")
 
 
 def add_command(sub: argparse._SubParsersAction) -> None:
@@ -48,10 +61,8 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         "and the sim model fine-tuned (--init) on the same subset. All scored on --real's test "
         "split; mean +- std over seeds; the report states the domain gap.",
         formatter_class=HelpFormatter, allow_abbrev=False)
-    s.add_argument("--sim", required=True, help="simulated dataset (pretraining)")
-    s.add_argument("--real", required=True, help="real (target-domain) dataset")
-    add_options(s, Sim2RealCfg, ("fractions", "seeds", "freeze"))
-    _common(s)
+    add_options(s, Sim2RealCfg, ("sim", "real", "fractions", "seeds", "freeze"))
+    _common(s, Sim2RealCfg)
     s.set_defaults(func=_sim2real)
     n = kinds.add_parser(
         "label-noise", help="accuracy against the level of label noise",
@@ -60,21 +71,16 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         "simulating again; one model per level and seed, scored on the test split against the "
         "clean labels and the noisy cones.",
         formatter_class=HelpFormatter, allow_abbrev=False)
-    n.add_argument("--data", required=True, help="dataset with clean forces")
-    add_options(n, LabelNoiseCfg, ("levels", "seeds"))
-    _common(n)
+    add_options(n, LabelNoiseCfg, ("data", "levels", "seeds"))
+    _common(n, LabelNoiseCfg)
     n.set_defaults(func=_label_noise)
 
 
-def _common(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", required=True, help="experiment folder to create (or continue)")
-    p.add_argument("--max-cells", type=int, default=None,
-                   help="stop after this many new cells (run again to continue)")
-    p.add_argument("--protocol", default="default", choices=tuple(PROTOCOLS),
-                   help="the runs' set of defaults (see `vistac train`)")
-    add_options(p, TrainCfg, TRAIN_OPTIONS)
-    p.set_defaults(**{o: None for o in TRAIN_OPTIONS})
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+def _common(p: argparse.ArgumentParser, cls: type) -> None:
+    add_options(p, cls, ("out",))
+    add_options(p, ExperimentCommandCfg, ("max_cells",))
+    add_train_options(p, TRAIN_OPTIONS)
+    add_progress_option(p)
 
 
 def base_cfg(args: argparse.Namespace, data: str) -> TrainCfg:
@@ -102,8 +108,8 @@ def _sim2real(args: argparse.Namespace) -> int:
 
     cfg = make_cfg(Sim2RealCfg, sim=args.sim, real=args.real, out=args.out,
                    fractions=tuple(args.fractions), seeds=args.seeds, freeze=args.freeze)
-    res = sim2real(cfg, base_cfg(args, cfg.real), max_cells=args.max_cells,
-                   progress=not args.quiet)
+    res = sim2real(cfg, base_cfg(args, cfg.real), max_cells=_max_cells(args),
+                   progress=progress_wanted(args))
     return _done(args.out, len(res.rows), cfg.seeds * (1 + 2 * len(cfg.fractions)))
 
 
@@ -113,9 +119,13 @@ def _label_noise(args: argparse.Namespace) -> int:
 
     cfg = make_cfg(LabelNoiseCfg, data=args.data, out=args.out, levels=tuple(args.levels),
                    seeds=args.seeds)
-    res = label_noise(cfg, base_cfg(args, cfg.data), max_cells=args.max_cells,
-                      progress=not args.quiet)
+    res = label_noise(cfg, base_cfg(args, cfg.data), max_cells=_max_cells(args),
+                      progress=progress_wanted(args))
     return _done(args.out, len(res.rows), len(cfg.levels) * cfg.seeds)
+
+
+def _max_cells(args: argparse.Namespace) -> int | None:
+    return from_options(ExperimentCommandCfg, args, ("max_cells",)).max_cells
 
 
 def _done(out: str, n: int, total: int) -> int:

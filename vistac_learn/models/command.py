@@ -4,9 +4,21 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Sequence
+from dataclasses import dataclass
 
-from vistac.errors import UserError
+from vistac.config import Config, HelpFormatter, add_options, from_options, param
 from vistac_learn.models import list_models, model_info
+
+OPTIONS = ("in_channels", "out_features")
+
+
+@dataclass(frozen=True)
+class ModelsCfg(Config):
+    """The options of `vistac models`: the input and output the table's sizes are for."""
+
+    in_channels: int = param(1, ge=1, le=1024, help="image channels (1 = edge image, "
+                             "3 = colour)")
+    out_features: int = param(2, ge=1, le=1024, help="outputs (2 = one finger, 4 = both)")
 
 
 def human(value: float, unit: str) -> str:
@@ -59,18 +71,15 @@ def _run_models(args: argparse.Namespace) -> int:
     """Print the model table (the `vistac models` command).
 
     Args:
-        args: parsed arguments with `in_channels` and `out_features`.
+        args: parsed options of `ModelsCfg`.
 
     Returns:
         Exit code 0.
     """
-    for flag, value in (("--in-channels", args.in_channels),
-                        ("--out-features", args.out_features)):
-        if not 1 <= value <= 1024:
-            raise UserError(f"{flag}: must be in 1..1024, got {value}")
-    infos = [model_info(name, args.in_channels, args.out_features) for name in list_models()]
+    cfg = from_options(ModelsCfg, args, OPTIONS)
+    infos = [model_info(name, cfg.in_channels, cfg.out_features) for name in list_models()]
     print(format_table(infos))
-    print(f"MACs = multiply-accumulates of Conv2d/Linear for one {args.in_channels}-channel image "
+    print(f"MACs = multiply-accumulates of Conv2d/Linear for one {cfg.in_channels}-channel image "
           "at the model's input size.")
     return 0
 
@@ -86,9 +95,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         help="list the registered models with parameters and multiply-accumulates",
         description="List every registered model: input size, parameters, multiply-accumulates "
         "per image, FC input size f and FC width w.",
+        formatter_class=HelpFormatter,
     )
-    parser.add_argument("--in-channels", type=int, default=1,
-                        help="image channels (1 = edge image, 3 = colour; default 1)")
-    parser.add_argument("--out-features", type=int, default=2,
-                        help="outputs (2 = one finger, 4 = both; default 2)")
+    add_options(parser, ModelsCfg, OPTIONS)
     parser.set_defaults(func=_run_models)

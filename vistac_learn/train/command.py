@@ -1,38 +1,66 @@
-"""`vistac train`: its options (declared by `TrainCfg`), the protocol switch and the handler."""
+"""`vistac train`: its options (declared by `TrainCfg` and `TrainCommandCfg`), the protocol
+switch and the handler."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
+from dataclasses import dataclass
 from pathlib import Path
 
-from vistac.config import HelpFormatter, add_options, apply, flag_labels, option_values
+from vistac.config import (
+    Config,
+    HelpFormatter,
+    add_options,
+    apply,
+    flag_labels,
+    from_options,
+    option_values,
+    param,
+)
+from vistac.progress import add_progress_option, progress_wanted
 from vistac_learn.train.config import PROTOCOLS, STUDY, TrainCfg, protocol_cfg
 
 OPTIONS = tuple(f.name for f in dataclasses.fields(TrainCfg)
                 if f.name not in ("data", "out", "eval_batch_size"))
+# `--help` shows each option's default under both protocols
+PROTOCOL_DEFAULTS = {"--protocol study": STUDY}
+
+
+@dataclass(frozen=True)
+class TrainCommandCfg(Config):
+    """The options of `vistac train` that are not a run's settings (`TrainCfg`); `vistac tune`
+    and `vistac experiment` share `protocol`."""
+
+    data: str = param(help="dataset directory")
+    out: str = param(help="run folder to create (or continue)")
+    protocol: str = param("default", choices=tuple(PROTOCOLS), help="set of defaults: the "
+                          "project's recipe (default) or the reference study's (study)")
+    resume: bool = param(False, help="continue the run in --out")
+
+
+def add_train_options(p: argparse.ArgumentParser, options: tuple[str, ...] = OPTIONS) -> None:
+    """`--protocol` and the `TrainCfg` options (unset ones keep the protocol's value)."""
+    add_options(p, TrainCommandCfg, ("protocol",))
+    add_options(p, TrainCfg, options, unset=True, alternatives=PROTOCOL_DEFAULTS)
 
 
 def add_command(sub: argparse._SubParsersAction) -> None:
     """Register `vistac train`."""
-    study = ", ".join(f"{k}={v}" for k, v in STUDY.items())
     p = sub.add_parser(
         "train",
         help="train a model on a dataset",
         description="Train a registered model (see `vistac models`) on a dataset; select the "
         "best epoch on the validation split; resumable. Defaults are those of --protocol "
         "default (the pinch view and pinchnet, both fingers); --protocol study switches them to "
-        f"the reference study's ({study}); any option overrides either.",
+        "the reference study's (each option below shows both where they differ); any option "
+        "overrides either.",
         formatter_class=HelpFormatter,
     )
-    p.add_argument("--data", required=True, help="dataset directory")
-    p.add_argument("--out", required=True, help="run folder to create (or continue)")
-    p.add_argument("--protocol", default="default", choices=tuple(PROTOCOLS),
-                   help="set of defaults: the project's recipe or the reference study's")
-    add_options(p, TrainCfg, OPTIONS)
-    p.set_defaults(**{o: None for o in OPTIONS})  # unset options keep the protocol's value
-    p.add_argument("--resume", action="store_true", help="continue the run in --out")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    add_options(p, TrainCommandCfg, ("data", "out"))
+    add_train_options(p)
+    add_options(p, TrainCommandCfg, ("resume",))
+    add_progress_option(p)
     p.set_defaults(func=_handler)
 
 
@@ -47,9 +75,10 @@ def _handler(args: argparse.Namespace) -> int:
     from vistac.api import train
     from vistac_learn.train.run_folder import finished
 
+    cmd = from_options(TrainCommandCfg, args, ("data", "out", "protocol", "resume"))
     cfg = options_cfg(args)
-    done = args.resume and finished(Path(cfg.out), cfg.epochs)
-    run = train(cfg, cfg.data, cfg.out, resume=args.resume, progress=not args.quiet)
+    done = cmd.resume and finished(Path(cfg.out), cfg.epochs)
+    run = train(cfg, cfg.data, cfg.out, resume=cmd.resume, progress=progress_wanted(args))
     for line in fingertip_lines(run.path):
         print(line)
     if done:

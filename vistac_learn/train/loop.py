@@ -38,19 +38,19 @@ damaged run says which file and that a plain rerun starts over.
 from __future__ import annotations
 
 import math
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from vistac.dataset import open_dataset
 from vistac.dataset.files import remove_stale_temporaries
 from vistac.errors import UserError
 from vistac.folder_lock import hold
+from vistac.progress import bar as progress_bar
+from vistac.progress import note
 from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.data.loading import loader
 from vistac_learn.data.samples import SampleSet, fingers_of
@@ -157,7 +157,7 @@ def train_one_epoch(model: torch.nn.Module, ds: SampleSet, opt, sched, cfg: Trai
         state: Position and running loss; updated after every step.
         save: Called after every ``cfg.checkpoint_every`` batches (but the last).
         on_batch: Called as ``on_batch(epoch, batch)`` after every optimiser step.
-        progress: Show a tqdm bar.
+        progress: Show a progress bar (`vistac.progress`).
 
     Raises:
         TrainingDiverged: a training loss that is not finite or above `DIVERGED_LOSS`.
@@ -167,8 +167,9 @@ def train_one_epoch(model: torch.nn.Module, ds: SampleSet, opt, sched, cfg: Trai
     batches = loader(ds, cfg.batch_size, epoch, perm, state.batch, cfg.loader_workers)
     n_batches = batches.batch_sampler.total
     _train_mode(model, cfg.freeze)
-    bar = tqdm(total=n_batches, initial=state.batch, desc=f"epoch {epoch + 1}/{cfg.epochs}",
-               disable=not progress, leave=False, unit="batch")
+    bar = progress_bar(total=n_batches, initial=state.batch,
+                       desc=f"epoch {epoch + 1}/{cfg.epochs}", enabled=progress, leave=False,
+                       unit="batch", lines="none")  # a log gets the epoch's line instead
     try:
         for b, batch in enumerate(batches, start=state.batch):
             n = len(batch["target"])
@@ -218,7 +219,7 @@ def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
     Args:
         cfg: The run's settings.
         resume: Continue the run in ``cfg.out`` from ``checkpoints/last.pt``.
-        progress: Show tqdm progress bars.
+        progress: Show progress bars and a line per epoch on stderr.
         on_batch: Called as ``on_batch(epoch, batch)`` after every optimiser step (tests use
             it to interrupt a run).
 
@@ -274,7 +275,7 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
                               init_note)
                      | {"fingertips": {c.split: c.as_dict() for c in coverage}})
         if init_note and progress:
-            tqdm.write(f"init: {init_note['summary']}", file=sys.stderr)
+            note(f"init: {init_note['summary']}")
 
     def save() -> None:
         save_last(folder.last, model, opt, sched, state, cfg, device)
@@ -302,11 +303,9 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
             save()
             append_metrics(folder.metrics, [row])
             if progress:
-                tqdm.write(
-                    f"epoch {epoch + 1}/{cfg.epochs}: train loss {row['train_loss']:.4g}, "
-                    f"val loss {row['val_loss']:.4g}, {cfg.select} {value:.4g}"
-                    + (" (best)" if improved else "") + f", {row['epoch_s']:.1f} s",
-                    file=sys.stderr)
+                note(f"epoch {epoch + 1}/{cfg.epochs}: train loss {row['train_loss']:.4g}, "
+                     f"val loss {row['val_loss']:.4g}, {cfg.select} {value:.4g}"
+                     + (" (best)" if improved else "") + f", {row['epoch_s']:.1f} s")
     except TrainingDiverged as exc:  # mark the run, so that a rerun into --out starts over
         mark_diverged(folder.path, exc.epoch, str(exc))
         raise

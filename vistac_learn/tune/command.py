@@ -3,13 +3,25 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
 
-from vistac.config import HelpFormatter, add_options, from_options
+from vistac.config import Config, HelpFormatter, add_options, from_options, param
 from vistac.engine import ENGINE_OPTIONS, EngineCfg
 from vistac.errors import UserError
-from vistac_learn.train.command import OPTIONS, options_cfg
-from vistac_learn.train.config import PROTOCOLS, TrainCfg
+from vistac.progress import add_progress_option, progress_wanted
+from vistac_learn.train.command import TrainCommandCfg, add_train_options, options_cfg
+from vistac_learn.tune.driver import TuneCfg
 from vistac_learn.tune.engines import TRIAL_OPTIONS, TrialCfg
+
+TUNE_OPTIONS = ("out", "trials")  # `seed` (--tune-seed) after --space
+
+
+@dataclass(frozen=True)
+class TuneCommandCfg(Config):
+    """The options of `vistac tune` besides the tuning's (`TuneCfg`) and the trials' settings."""
+
+    space: str | None = param(None, help="YAML or JSON file changing the search space")
+    resume: bool = param(False, help="continue the tuning in --out")
 
 
 def add_command(sub: argparse._SubParsersAction) -> None:
@@ -28,19 +40,15 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         "filesystem every node shares.",
         formatter_class=HelpFormatter,
     )
-    p.add_argument("--data", required=True, help="dataset directory")
-    p.add_argument("--out", required=True, help="tuning folder to create (or continue)")
-    p.add_argument("--trials", type=int, default=20, help="trials in total")
-    p.add_argument("--space", default=None, help="YAML or JSON file changing the search space")
-    p.add_argument("--tune-seed", type=int, default=0, help="seed of the optimiser")
-    p.add_argument("--resume", action="store_true", help="continue the tuning in --out")
+    add_options(p, TrainCommandCfg, ("data",))
+    add_options(p, TuneCfg, TUNE_OPTIONS)
+    add_options(p, TuneCommandCfg, ("space",))
+    add_options(p, TuneCfg, ("seed",))
+    add_options(p, TuneCommandCfg, ("resume",))
     add_options(p, EngineCfg, ENGINE_OPTIONS)
     add_options(p, TrialCfg, TRIAL_OPTIONS)
-    p.add_argument("--protocol", default="default", choices=tuple(PROTOCOLS),
-                   help="the trials' set of defaults (see `vistac train`)")
-    add_options(p, TrainCfg, OPTIONS)
-    p.set_defaults(**{o: None for o in OPTIONS})
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_train_options(p)
+    add_progress_option(p)
     p.set_defaults(func=_handler)
 
 
@@ -50,7 +58,10 @@ def _handler(args: argparse.Namespace) -> int:
 
     engine = from_options(EngineCfg, args, ENGINE_OPTIONS)
     trial = from_options(TrialCfg, args, TRIAL_OPTIONS)
-    space = load_space(args.space)
+    tuning = from_options(TuneCfg, args, (*TUNE_OPTIONS, "seed"))
+    cmd = from_options(TuneCommandCfg, args, ("space", "resume"))
+    progress = progress_wanted(args)
+    space = load_space(cmd.space)
     for d in space.dims:
         if getattr(args, d.name) is not None:
             flag = "--" + d.name.replace("_", "-")
@@ -58,14 +69,14 @@ def _handler(args: argparse.Namespace) -> int:
                             "the space with --space")
 
     def started(k: int) -> None:
-        if engine.engine == "ray" and not args.quiet:
+        if engine.engine == "ray" and progress:
             print(f"tune on Ray: {k} trial{'s' if k > 1 else ''} at once ({trial.trial_cpus:g} "
                   f"CPU, {trial.trial_gpus:g} GPU each)", flush=True)
 
-    res = tune(options_cfg(args), args.data, args.out, trials=args.trials, space=args.space,
-               seed=args.tune_seed, resume=args.resume, engine=engine, trial=trial,
-               progress=not args.quiet, on_start=started)
+    res = tune(options_cfg(args), args.data, tuning.out, trials=tuning.trials, space=cmd.space,
+               seed=tuning.seed, resume=cmd.resume, engine=engine, trial=trial,
+               progress=progress, on_start=started)
     params = ", ".join(f"{d.name}={res.best[d.name]:.4g}" for d in space.dims)
     print(f"best of {len(res.rows)} trials: trial {res.best['trial']}, validation median "
-          f"angle {res.best['objective']:.2f} deg ({params}); {args.out}/best.json")
+          f"angle {res.best['objective']:.2f} deg ({params}); {tuning.out}/best.json")
     return 0

@@ -43,12 +43,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from tqdm import tqdm
 
 from vistac.config import Config, param, to_dict
 from vistac.dataset.files import atomic_write_bytes, atomic_write_json
 from vistac.errors import UserError
 from vistac.folder_lock import hold
+from vistac.progress import bar as progress_bar
 from vistac_learn.train.config import TrainCfg
 from vistac_learn.train.job import JobCfg, JobResult, LocalRunner
 from vistac_learn.train.loop import TrainingDiverged
@@ -64,7 +64,8 @@ class TuneCfg(Config):
     out: str = param(help="tuning folder")
     trials: int = param(20, ge=1, le=100_000, help="trials in total (a resumed tuning may "
                         "raise it)")
-    seed: int = param(0, ge=0, lt=2**32, help="seed of the optimiser's suggestions")
+    seed: int = param(0, ge=0, lt=2**32, flag="--tune-seed",
+                      help="seed of the optimiser's suggestions")
 
 
 @dataclass(frozen=True)
@@ -296,8 +297,8 @@ def run_tune_held(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool = 
             yield job_cfg(nxt, values)
             nxt += 1
 
-    bar = tqdm(total=max(cfg.trials, len(rows)), initial=len(rows), desc="tune",
-               unit="trial", disable=not progress)
+    bar = progress_bar(total=max(cfg.trials, len(rows)), initial=len(rows), desc="tune",
+                       unit="trial", enabled=progress, lines="each")
     best = _best(rows)
     _write_outputs(out, rows, best, space, base, plot_convergence)
     for position, result in runner.run(items()):

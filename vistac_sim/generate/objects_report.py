@@ -16,10 +16,10 @@ from collections import Counter
 from collections.abc import Iterable, Mapping
 
 import numpy as np
-from tqdm import tqdm
 
 from vistac.dataset.schema import failed_object_counts, redraw_counts
 from vistac.errors import UserError
+from vistac.progress import bar as progress_bar
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.objects.specs import ObjectSpec
 
@@ -46,7 +46,7 @@ def screen_objects(specs: list[ObjectSpec], cfg: GenerateCfg,
             when no object remains.
     """
     kept, skipped, repairs = [], [], {}
-    bar = tqdm(total=len(specs), desc="check objects", unit="obj", disable=not progress)
+    bar = progress_bar(total=len(specs), desc="check objects", unit="obj", enabled=progress)
     for spec, (reason, rejections, notes) in zip(specs, outcomes, strict=True):
         bar.update()
         if notes:

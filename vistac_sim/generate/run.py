@@ -18,12 +18,11 @@ from collections.abc import Callable, Iterator
 from contextlib import closing, nullcontext
 from pathlib import Path
 
-from tqdm import tqdm
-
 from vistac.dataset import MANIFEST, files
 from vistac.dataset.schema import IMAGES, MASK_VALUES, MASKS, PARTIAL
 from vistac.engine import EngineCfg, ForkServer, LocalRunner, PoolRunner, preflight
 from vistac.folder_lock import hold
+from vistac.progress import bar as progress_bar
 from vistac_sim.effects import build_pipeline
 from vistac_sim.generate import WORKER_MODULES, shards
 from vistac_sim.generate.chunks import ChunkWork
@@ -154,8 +153,9 @@ def _generate(cfg: GenerateCfg, out: Path, workers: int, resume: bool, progress:
     chunks = plan_chunks(cfg.n, cfg.seed, len(specs), cfg.chunk_size)
     todo = [c for c in chunks if c.index not in done]
     workers = max(1, min(workers, len(todo)))  # no idle processes
-    bar = tqdm(total=cfg.n, initial=sum(len(c.config_ids) for c in chunks if c.index in done),
-               unit="cfg", desc="generate", disable=not progress, smoothing=0.1)
+    bar = progress_bar(total=cfg.n, initial=sum(len(c.config_ids) for c in chunks
+                                                if c.index in done),
+                       unit="cfg", desc="generate", enabled=progress, lines="each", smoothing=0.1)
     committed, merge = _chunk_runner(cfg, specs, out, todo, workers, engine, server)
     with closing(committed):  # its workers stop here even if the loop is interrupted
         for count in committed:

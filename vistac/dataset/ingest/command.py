@@ -4,9 +4,19 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import dataclass
 from pathlib import Path
 
-from vistac.config import ConfigError, HelpFormatter, add_options, from_options
+from vistac.config import (
+    Config,
+    ConfigError,
+    HelpFormatter,
+    add_options,
+    allowed_range,
+    field_of,
+    from_options,
+    param,
+)
 from vistac.dataset import SplitCfg
 from vistac.dataset.files import check_out_dir
 from vistac.dataset.ingest.config import ColumnMap, IngestCfg, IngestSources
@@ -16,6 +26,13 @@ SOURCE_OPTIONS = ("recordings", "images", "labels", "labels_sheet")
 CFG_OPTIONS = ("threshold", "unit")
 CRITERIA_OPTIONS = ("min_samples", "saturation", "min_force", "allow_pulling")
 SPLIT_OPTIONS = ("by", "fractions")
+
+
+@dataclass(frozen=True)
+class IngestCommandCfg(Config):
+    """The options of `vistac ingest` besides the sources (`IngestSources`) and the knobs."""
+
+    out: Path = param(help="dataset folder to create")
 
 
 def add_command(sub: argparse._SubParsersAction) -> None:
@@ -30,13 +47,15 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         formatter_class=HelpFormatter,
     )
     add_options(p, IngestSources, SOURCE_OPTIONS[:2])
-    p.add_argument("--out", type=Path, required=True, help="dataset folder to create")
+    add_options(p, IngestCommandCfg, ("out",))
     add_options(p, IngestSources, SOURCE_OPTIONS[2:])
     add_options(p, IngestCfg, CFG_OPTIONS)
     c = ColumnMap()
-    p.add_argument("--columns", type=int, nargs=6, default=[*c.thumb, *c.index],
-                   metavar=("THUMB_X", "THUMB_Y", "THUMB_Z", "INDEX_X", "INDEX_Y", "INDEX_Z"),
-                   help="0-based CSV columns of the forces")
+    columns = p.add_argument(  # one option for the two fields of `ColumnMap`
+        "--columns", type=int, nargs=6, default=[*c.thumb, *c.index],
+        metavar=("THUMB_X", "THUMB_Y", "THUMB_Z", "INDEX_X", "INDEX_Y", "INDEX_Z"),
+        help="0-based CSV columns of the forces")
+    columns.allowed = allowed_range(field_of(ColumnMap, "thumb")[0].metadata, each=True)
     add_options(p, IngestCfg, CRITERIA_OPTIONS)
     add_options(p, IngestSources, ("objects_csv",))
     add_options(p, SplitCfg, SPLIT_OPTIONS)
@@ -51,12 +70,13 @@ def _run_ingest(args: argparse.Namespace) -> int:
         columns = ColumnMap(tuple(args.columns[:3]), tuple(args.columns[3:]))
     except ConfigError as exc:
         raise UserError(f"--columns: {exc.reason}") from None
-    check_out_dir(args.out)
+    out = from_options(IngestCommandCfg, args, ("out",)).out
+    check_out_dir(out)
     cfg = from_options(IngestCfg, args, CFG_OPTIONS + CRITERIA_OPTIONS, columns=columns)
     split = from_options(SplitCfg, args, SPLIT_OPTIONS)
     src = from_options(IngestSources, args, (*SOURCE_OPTIONS, "objects_csv", "seed",
                                              "image_size"), split=split)
-    manifest = ingest(src, args.out, cfg).manifest
-    print(f"wrote {args.out}: " + json.dumps({"counts": manifest["counts"],
+    manifest = ingest(src, out, cfg).manifest
+    print(f"wrote {out}: " + json.dumps({"counts": manifest["counts"],
                                               "rejected": manifest["rejected"]["by_reason"]}))
     return 0
