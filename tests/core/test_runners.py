@@ -109,26 +109,22 @@ def test_a_killed_server_is_an_error_not_a_hang():
             PoolRunner(forks, square, 1).map([3])
 
 
-def test_a_script_without_a_main_guard_is_told_what_to_do(tmp_path):
-    """The server imports the calling script's main module (spawn); a script that starts
-    workers at import time would start them again there and the server dies: the error says
-    why and what to write instead."""
+def test_a_script_with_or_without_a_main_guard_starts_workers(tmp_path):
+    """The server does not import the calling script's main module (issue 31): a script that
+    starts workers at import time, without the ``__main__`` guard, works like a guarded one
+    (it used to start them again in the server, which died: WorkerDied)."""
     script = tmp_path / "unguarded.py"
-    script.write_text("from vistac.engine import ForkServer, PoolRunner\n"
-                      "with ForkServer() as forks:\n"
-                      "    print(PoolRunner(forks, abs, 1).map([-3]))\n")
-    res = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                         timeout=120)
-    assert res.returncode != 0
-    assert "WorkerDied" in res.stderr and 'if __name__ == "__main__":' in res.stderr, \
-        res.stderr[-2000:]
-    script.write_text("from vistac.engine import ForkServer, PoolRunner\n"
-                      "if __name__ == '__main__':\n"
-                      "    with ForkServer() as forks:\n"
-                      "        print(PoolRunner(forks, abs, 1).map([-3]))\n")
-    res = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
-                         timeout=120)
-    assert res.returncode == 0 and res.stdout.strip() == "[3]", res.stderr[-2000:]
+    for code in ("from vistac.engine import ForkServer, PoolRunner\n"
+                 "with ForkServer() as forks:\n"
+                 "    print(PoolRunner(forks, abs, 1).map([-3]))\n",
+                 "from vistac.engine import ForkServer, PoolRunner\n"
+                 "if __name__ == '__main__':\n"
+                 "    with ForkServer() as forks:\n"
+                 "        print(PoolRunner(forks, abs, 1).map([-3]))\n"):
+        script.write_text(code)
+        res = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                             timeout=120)
+        assert res.returncode == 0 and res.stdout.strip() == "[3]", res.stderr[-2000:]
 
 
 def test_call_runs_in_a_new_worker(server):
