@@ -18,8 +18,10 @@ import torch
 
 from tests.learn_fixtures import make_dataset
 from vistac.dataset import FINGERS, open_dataset
+from vistac.dataset.schema import PIXEL_CENTRE
+from vistac.projection import Projection
 from vistac_learn.data.contacts import contact_truth
-from vistac_learn.data.fingertip_table import fingertip_table
+from vistac_learn.data.fingertip_table import fingertip_table, simulator_tips
 from vistac_learn.data.fingertips import Fingertip
 from vistac_learn.data.pinch_view import PinchView, contact_targets, pinch_features
 from vistac_learn.data.views import Aug, SampleInfo, TipCfg, mirror_labels
@@ -142,7 +144,57 @@ def test_contact_truth_lies_on_the_drawn_pads(tmp_path):
     configs = t.configs.drop(columns=[c for c in t.configs if c.startswith("target_")])
     configs.to_parquet(data / "configs.parquet")
     assert not contact_truth(open_dataset(data)).known.any()
+    # a rolled camera turns the image about its centre: the contact and the axis turn with it
     moved = t.configs.assign(camera_roll_deg=np.where(np.arange(len(t.configs)) == 0, 2.0, 0.0))
     moved.to_parquet(data / "configs.parquet")
-    known = contact_truth(open_dataset(data)).known
-    assert not known[0].any() and known[1:].all()
+    rolled = contact_truth(open_dataset(data))
+    assert rolled.known.all()
+    np.testing.assert_array_equal(rolled.point[1:], truth.point[1:])
+    centre = 96 / 2 - PIXEL_CENTRE
+    for i in range(len(FINGERS)):
+        a, b = truth.point[0, i] - centre, rolled.point[0, i] - centre
+        assert np.linalg.norm(b) == pytest.approx(np.linalg.norm(a), rel=1e-9)
+        turn = np.degrees(np.arctan2(a[0] * b[1] - a[1] * b[0], a @ b))
+        c, d = truth.axis[0, i], rolled.axis[0, i]
+        assert abs(turn) == pytest.approx(2.0, abs=1e-6)
+        assert np.degrees(np.arctan2(c[0] * d[1] - c[1] * d[0], c @ d)) == pytest.approx(turn)
+
+
+def test_clean_contact_truth_is_the_plain_top_view_bit_for_bit(tmp_path):
+    """The one projection (`vistac.projection`) gives a plain top view's targets exactly as the
+    formula the learner used before it: u = (x - camera_x) s + W/2 - 0.5, v = -(y - camera_y)
+    s + H/2 - 0.5, the axis (x, -y) normalised."""
+    t = open_dataset(make_dataset(tmp_path / "ds", n=12))
+    truth, c = contact_truth(t), t.configs
+    s, cx, cy = (c[k].to_numpy(float) for k in ("px_per_m", "camera_x", "camera_y"))
+    for i, f in enumerate(FINGERS):
+        x, y = c[f"target_{f}_x"].to_numpy(float), c[f"target_{f}_y"].to_numpy(float)
+        point = np.stack([(x - cx) * s + 96 / 2, -(y - cy) * s + 96 / 2], 1) - PIXEL_CENTRE
+        ax = c[[f"approach_{f}_x", f"approach_{f}_y"]].to_numpy(float) * np.array([1.0, -1.0])
+        assert np.array_equal(truth.point[:, i], point)
+        assert np.array_equal(truth.axis[:, i], ax / np.linalg.norm(ax, axis=1, keepdims=True))
+
+
+def test_photo_contact_truth_lies_on_the_pads(tmp_path):
+    """`--preset photo` (a tilted, rolled perspective camera, fingers drawn by hand): every
+    contact point and finger axis is known (before, these configurations had no truth), one
+    fingertip radius from the simulator's fingertip in the image (`simulator_tips`, projected
+    from the tip columns) and along its axis."""
+    from vistac.cli import main
+
+    out = tmp_path / "photo"
+    assert main(["generate", "--n", "6", "--preset", "photo", "--seed", "5", "--workers", "1",
+                 "--no-progress", "--out", str(out)]) == 0
+    t = open_dataset(out)
+    assert (t.configs["camera_fovy_deg"] > 0).all() and (t.configs["camera_tilt_deg"] > 0).all()
+    truth = contact_truth(t)
+    assert truth.known.all()
+    for row in range(len(t.configs)):
+        c = t.configs.iloc[row]
+        proj = Projection.from_columns(c, 227)
+        for i, (f, (tip, axis)) in enumerate(simulator_tips(t, row, 227).items()):
+            at = [c[f"target_{f}_x"], c[f"target_{f}_y"], t.hand["height"]]
+            radius = t.hand["tip_radius"] * proj.px_per_m_at(np.array(at))  # the local scale
+            gap = np.linalg.norm(truth.point[row, i] - tip)
+            assert gap == pytest.approx(radius, rel=0.03), (row, f)
+            assert truth.axis[row, i] @ axis > np.cos(np.radians(1)), (row, f)

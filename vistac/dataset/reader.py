@@ -61,6 +61,12 @@ class DatasetTables:
         return dict((self.manifest.get("config") or {}).get("render") or {})
 
     @property
+    def hand(self) -> dict:
+        """The manifest's hand config (may be empty for ingested data): e.g. ``height``, the
+        fingertips' axis above the table, where contact points and fingertips lie (m)."""
+        return dict((self.manifest.get("config") or {}).get("hand") or {})
+
+    @property
     def table_rgb(self) -> tuple[float, float, float]:
         """Background colour of the images in [0, 1]."""
         return tuple(self.render.get("table_rgb", TABLE_RGB))

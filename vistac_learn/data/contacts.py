@@ -7,13 +7,16 @@ there (``normal_<finger>_x|y|z``, the finger's sensor frame) and the finger's di
 model reading the image can be taught: the contact point in pixels (u right, v down), the
 normal as (n_y, n_z), the label's coordinates, and the finger's axis as an image direction.
 
-The projection is the plain top view, ``u = (x - camera_x) * px_per_m + W / 2 - 0.5``,
-``v = -(y - camera_y) * px_per_m + H / 2 - 0.5``: pixel centres at integers, as the located
-fingertips and the crops have them (`vistac.dataset.schema.PIXEL_CENTRE`). A configuration
-whose camera was rolled or tilted (columns ``camera_roll_deg``, ``camera_tilt_deg``), whose
-drawn fingers were displaced (``overlay_<finger>_*``), or that lacks any of the columns (an
-ingested recording) has no truth: its rows are NaN and `ContactTruth.known` is False there, so
-the auxiliary losses skip it and training on force labels alone still works.
+The contact point and the finger lie at the fingertips' height above the table
+(the manifest's ``hand.height``) and are projected by the camera the image was made with
+(`vistac.projection.Projection.from_columns`: the plain top view, a tilted or rolled one, or
+the `photo` preset's perspective phone camera), pixel centres at integers as the located
+fingertips and the crops have them (`vistac.dataset.schema.PIXEL_CENTRE`). The truth is the real
+contact and the real finger, where the drawn finger was displaced too (``overlay_<finger>_*``):
+the label is felt in the real finger's frame, and the model learns the drawn finger's offset
+(the crop's tilt). A configuration that lacks any of the columns (an ingested recording) has no
+truth: its rows are NaN and `ContactTruth.known` is False there, so the auxiliary losses skip it
+and training on force labels alone still works.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import numpy as np
 
 from vistac.dataset import FINGERS, DatasetTables
 from vistac.dataset.schema import PIXEL_CENTRE, normal_columns
+from vistac.projection import CAMERA_COLUMNS, CENTRE_COLUMNS, Projection
 from vistac_learn.data.variants import read_rgb
 
 
@@ -45,16 +49,6 @@ class ContactTruth:
     known: np.ndarray
 
 
-def _plain_projection(configs) -> np.ndarray:
-    """(N,) rows drawn with the plain top view (no camera roll or tilt, fingers not moved)."""
-    ok = np.ones(len(configs), bool)
-    for col in configs.columns:
-        if col in ("camera_roll_deg", "camera_tilt_deg") or col.startswith("overlay_"):
-            v = configs[col].to_numpy(float)
-            ok &= np.nan_to_num(v, nan=0.0) == 0.0
-    return ok
-
-
 def contact_truth(tables: DatasetTables) -> ContactTruth:
     """The contact points and normals of `tables` (NaN and unknown where the table lacks them)."""
     c = tables.configs
@@ -62,25 +56,27 @@ def contact_truth(tables: DatasetTables) -> ContactTruth:
     point = np.full((n, len(FINGERS), 2), np.nan)
     normal = np.full((n, len(FINGERS), 2), np.nan)
     axis = np.full((n, len(FINGERS), 2), np.nan)
-    need = ["camera_x", "camera_y", "px_per_m"]
+    need = list(CENTRE_COLUMNS)
     for f in FINGERS:
         need += [f"target_{f}_x", f"target_{f}_y", f"approach_{f}_x", f"approach_{f}_y",
                  *normal_columns(f)[1:]]
     if n and all(k in c for k in need):
-        size = tables.render.get("image_size")
-        h, w = (size, size) if size else read_rgb(tables.image_path(0)).shape[:2]
-        s = c["px_per_m"].to_numpy(float)
-        cx, cy = c["camera_x"].to_numpy(float), c["camera_y"].to_numpy(float)
+        size = tables.render.get("image_size") or read_rgb(tables.image_path(0)).shape[0]
+        z = float(tables.hand.get("height", 0.0))
+        cams = c[[k for k in CAMERA_COLUMNS if k in c]].to_dict("records")
+        at = np.stack([np.stack([c[f"target_{f}_x"].to_numpy(float),
+                                 c[f"target_{f}_y"].to_numpy(float), np.full(n, z)], axis=1)
+                       for f in FINGERS], axis=1)  # (N, F, 3) world
+        step = np.stack([np.stack([c[f"approach_{f}_x"].to_numpy(float),
+                                   c[f"approach_{f}_y"].to_numpy(float), np.zeros(n)], axis=1)
+                         for f in FINGERS], axis=1)
+        for row, cam in enumerate(cams):
+            proj = Projection.from_columns(cam, size)
+            point[row] = proj.project(at[row]) - PIXEL_CENTRE
+            axis[row] = proj.direction(at[row], step[row])
         for i, f in enumerate(FINGERS):
-            x, y = c[f"target_{f}_x"].to_numpy(float), c[f"target_{f}_y"].to_numpy(float)
-            point[:, i] = np.stack([(x - cx) * s + w / 2, -(y - cy) * s + h / 2],
-                                   axis=1) - PIXEL_CENTRE
-            nv = c[normal_columns(f)[1:]].to_numpy(float)
-            normal[:, i] = _unit(nv)
-            ax = c[[f"approach_{f}_x", f"approach_{f}_y"]].to_numpy(float)
-            axis[:, i] = _unit(ax * np.array([1.0, -1.0]))  # world y up, image v down
-        plain = _plain_projection(c)
-        point[~plain], normal[~plain], axis[~plain] = np.nan, np.nan, np.nan
+            normal[:, i] = _unit(c[normal_columns(f)[1:]].to_numpy(float))
+            axis[:, i] = _unit(axis[:, i])
     known = (np.isfinite(point).all(axis=2) & np.isfinite(normal).all(axis=2)
              & np.isfinite(axis).all(axis=2))
     return ContactTruth(point, normal, axis, known)

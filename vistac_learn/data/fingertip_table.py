@@ -18,6 +18,7 @@ from vistac.dataset import FINGERS, DatasetTables
 from vistac.dataset.files import remove_stale_temporaries, write_table
 from vistac.dataset.schema import PIXEL_CENTRE
 from vistac.errors import UserError
+from vistac.projection import Projection, displace, overlay_from_columns, rotz
 from vistac_learn.data import fingertips
 from vistac_learn.data.fingertips import FIELDS, Fingertip, LocatorCfg
 from vistac_learn.data.locator import locate_fingertips
@@ -27,13 +28,16 @@ from vistac_learn.data.variants import read_rgb
 def simulator_tips(tables: DatasetTables, row: int, size: int
                    ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """The simulator's fingertip centre (pixels) and unit finger axis (image u, v) of each finger
-    of a configuration, from ``configs.parquet`` (what the locator is measured against), in the
-    locator's coordinates: pixel centres at integers (the projection's continuous coordinates
-    less `PIXEL_CENTRE`; comparing the two unconverted put every located tip 0.71 px off).
+    of a configuration as the image draws it, from ``configs.parquet`` (what the locator is
+    measured against), in the locator's coordinates: pixel centres at integers (the projection's
+    continuous coordinates less `PIXEL_CENTRE`; comparing the two unconverted put every located
+    tip 0.71 px off).
 
-    A perspective camera (``camera_fovy_deg`` > 0, the ``photo`` preset) projects the fingertip
-    at the hand's height above the table (`vistac_sim.render.shot.Shot.project`); the clean
-    orthographic view scales the table-plane position.
+    The fingertip lies at the hand's height above the table (the manifest's ``hand.height``),
+    is moved as the drawn finger was (`vistac.projection.displace` about the sensor site, the
+    ``overlay_<finger>_*`` columns) and projected by the image's camera
+    (`vistac.projection.Projection.from_columns`: the plain top view, a tilted one, or the
+    ``photo`` preset's perspective phone camera).
 
     Args:
         tables: The dataset.
@@ -41,37 +45,18 @@ def simulator_tips(tables: DatasetTables, row: int, size: int
         size: Side of the (square) image in pixels.
     """
     c = tables.configs.iloc[row]
-    if float(c.get("camera_fovy_deg", 0.0) or 0.0) > 0:
-        return _perspective_tips(tables, c, size)
-    ppm = c["px_per_m"]
+    proj = Projection.from_columns(c, size)
+    hand = tables.hand
     out = {}
     for f in FINGERS:
-        tip = np.array([(c[f"tip_{f}_x"] - c["camera_x"]) * ppm + size / 2,
-                        -(c[f"tip_{f}_y"] - c["camera_y"]) * ppm + size / 2]) - PIXEL_CENTRE
-        axis = np.array([c[f"approach_{f}_x"], -c[f"approach_{f}_y"]], float)
-        out[f] = (tip, axis / np.linalg.norm(axis))
-    return out
-
-
-def _perspective_tips(tables: DatasetTables, c: pd.Series, size: int
-                      ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """`simulator_tips` of a configuration seen by a perspective camera."""
-    from vistac_sim.render.shot import CameraPose, Shot
-
-    height = float(((tables.manifest.get("config") or {}).get("hand") or {}).get("height", 0.0))
-    cam = CameraPose(center=(float(c["camera_x"]), float(c["camera_y"])),
-                     tilt=np.radians(float(c["camera_tilt_deg"])),
-                     tilt_azimuth=np.radians(float(c["camera_tilt_azimuth_deg"])),
-                     roll=np.radians(float(c["camera_roll_deg"])),
-                     fovy=np.radians(float(c["camera_fovy_deg"])))
-    view = Shot(size, size / float(c["px_per_m"]), tables.table_rgb, camera=cam)
-    out = {}
-    for f in FINGERS:
-        tip = np.array([c[f"tip_{f}_x"], c[f"tip_{f}_y"], height])
-        step = np.array([c[f"approach_{f}_x"], c[f"approach_{f}_y"], 0.0])
-        uv = view.project(np.stack([tip, tip + 1e-3 * step / np.linalg.norm(step)]))
-        axis = uv[1] - uv[0]
-        out[f] = (uv[0] - PIXEL_CENTRE, axis / np.linalg.norm(axis))
+        tip = np.array([c[f"tip_{f}_x"], c[f"tip_{f}_y"], hand.get("height", 0.0)], float)
+        step = np.array([c[f"approach_{f}_x"], c[f"approach_{f}_y"], 0.0], float)
+        overlay = overlay_from_columns(c, f)
+        if any(overlay):  # turned about the sensor site, on the pad's front
+            site = tip + hand.get("tip_radius", 0.0) * step / np.linalg.norm(step)
+            tip, step = displace(tip, site, overlay), rotz(overlay[2]) @ step
+        axis = proj.direction(tip, step)
+        out[f] = (proj.project(tip) - PIXEL_CENTRE, axis / np.linalg.norm(axis))
     return out
 
 

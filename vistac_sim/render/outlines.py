@@ -18,9 +18,10 @@ import cv2
 import numpy as np
 
 from vistac.dataset import FINGERS
+from vistac.projection import displace
 from vistac_sim.hand.ids import ModelIds
 from vistac_sim.mj import mujoco
-from vistac_sim.render.shot import Shot, rotz
+from vistac_sim.render.shot import Shot
 from vistac_sim.render.topview import finger_capsules
 
 SIDES = 24
@@ -34,10 +35,8 @@ def moved_capsules(model: mujoco.MjModel, data: mujoco.MjData, ids: ModelIds,
     by the view's overlay error (turned about the fingertip, then shifted)."""
     out = []
     for k, (f, caps) in enumerate(zip(FINGERS, finger_capsules(model, data, ids), strict=True)):
-        dx, dy, da = shot.overlay[k]
-        pivot, rot = data.site_xpos[ids.site[f]], rotz(da)
         ends = np.array([[a, b] for a, b, _ in caps], float)  # (2, 2, 3)
-        ends = pivot + (ends - pivot) @ rot.T + np.array([dx, dy, 0.0])
+        ends = displace(ends, data.site_xpos[ids.site[f]], shot.overlay[k])
         radii = np.array([[r, r] for _, _, r in caps], float)[..., None]
         out.append(np.concatenate([ends, radii], axis=-1))
     return out
@@ -46,11 +45,7 @@ def moved_capsules(model: mujoco.MjModel, data: mujoco.MjData, ids: ModelIds,
 def px_per_m_at(shot: Shot, points: np.ndarray) -> np.ndarray:
     """Pixels per metre of the image at world points (..., 3) (for a small length across
     the view axis)."""
-    points = np.asarray(points, float)
-    if not shot.perspective:
-        return np.full(points.shape[:-1], shot.px_per_m)
-    pos, _, _, fwd = shot.frame()
-    return shot.focal_px / ((points - pos) @ fwd)
+    return shot.projection.px_per_m_at(points)
 
 
 def sphere_polygons(shot: Shot, spheres: np.ndarray) -> np.ndarray:

@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vistac.dataset import FINGERS
+from vistac.projection import Projection, overlay_columns
 from vistac_sim.render.config import RenderCfg
 
-CAMERA_DISTANCE = 1.0  # m, the scene camera's height above the table (sim_assets/hand/scene.xml)
 HEADLIGHT = (0.45, 0.55)  # ambient, diffuse of the scene's headlight (sim_assets/hand/scene.xml)
 
 
@@ -184,68 +184,38 @@ class Shot:
         """Pixels per metre of this view."""
         return self.image_size / self.view_extent * self.camera.scale
 
+    @functools.cached_property
+    def projection(self) -> Projection:
+        """The camera this shot is seen with (world to pixel; made once per shot)."""
+        c = self.camera
+        return Projection(self.image_size, self.px_per_m, c.center, c.tilt, c.tilt_azimuth,
+                          c.roll, c.fovy)
+
     @property
     def perspective(self) -> bool:
         """True for a perspective camera (`CameraPose.fovy` > 0)."""
-        return self.camera.fovy > 0
-
-    @property
-    def focal_px(self) -> float:
-        """Focal length in pixels of a perspective camera."""
-        return self.image_size / 2 / np.tan(self.camera.fovy / 2)
+        return self.projection.perspective
 
     @property
     def distance(self) -> float:
         """The camera's distance from the table point at the image centre, m."""
-        if not self.perspective:
-            return CAMERA_DISTANCE
-        return self.focal_px / self.px_per_m
+        return self.projection.distance
 
     def frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(pos, right, up, forward) of the camera in world coordinates (`_frame`, made once
-        per view; read-only arrays)."""
-        return self._frame
-
-    @functools.cached_property
-    def _frame(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(pos, right, up, forward) of the camera in world coordinates.
-
-        The clean camera looks straight down from (0, 0, 1) with image right = world +x and image
-        up = world +y. Roll turns (right, up) about the vertical, then the tilt turns the whole
-        frame about the horizontal axis that leans the view axis towards `tilt_azimuth`. A
-        perspective camera stands at `distance` instead.
-        """
-        c = self.camera
-        cr, sr = np.cos(c.roll), np.sin(c.roll)
-        right, up, fwd = np.array([cr, sr, 0.0]), np.array([-sr, cr, 0.0]), np.array([0, 0, -1.0])
-        tilt = _rotation(np.array([-np.sin(c.tilt_azimuth), np.cos(c.tilt_azimuth), 0.0]), c.tilt)
-        right, up, fwd = tilt @ right, tilt @ up, tilt @ fwd
-        pos = np.array([c.center[0], c.center[1], 0.0]) - self.distance * fwd
-        for v in (pos, right, up, fwd):
-            v.setflags(write=False)
-        return pos, right, up, fwd
+        """(pos, right, up, forward) of the camera in world coordinates (`Projection.frame`)."""
+        return self.projection.frame()
 
     def project(self, points: np.ndarray) -> np.ndarray:
-        """Continuous pixel coordinates (u right, v down) of world points (..., 3)."""
-        pos, right, up, fwd = self.frame()
-        d = np.asarray(points, float) - pos
-        half = self.image_size / 2
-        if self.perspective:
-            s = self.focal_px / (d @ fwd)
-        else:
-            s = self.px_per_m
-        return np.stack([half + d @ right * s, half - d @ up * s], axis=-1)
+        """Continuous pixel coordinates (u right, v down) of world points (..., 3)
+        (`Projection.project`)."""
+        return self.projection.project(points)
 
     def columns(self) -> dict:
         """The view's parameters as configuration-table columns (angles in degrees)."""
-        c, nan = self.camera, float("nan")
-        row = {"camera_x": float(c.center[0]), "camera_y": float(c.center[1]),
-               "px_per_m": float(self.px_per_m), "camera_tilt_deg": float(np.degrees(c.tilt)),
-               "camera_tilt_azimuth_deg": float(np.degrees(c.tilt_azimuth)),
-               "camera_roll_deg": float(np.degrees(c.roll))}
-        for f, (dx, dy, da) in zip(FINGERS, self.overlay, strict=True):
-            row |= {f"overlay_{f}_dx": float(dx), f"overlay_{f}_dy": float(dy),
-                    f"overlay_{f}_rot_deg": float(np.degrees(da))}
+        nan = float("nan")
+        row = self.projection.columns()
+        for f, overlay in zip(FINGERS, self.overlay, strict=True):
+            row |= overlay_columns(f, overlay)
         light = self.light
         row |= {"light_elevation_deg": float(np.degrees(light.elevation)) if light else nan,
                 "light_azimuth_deg": float(np.degrees(light.azimuth)) if light else nan,
@@ -259,9 +229,7 @@ class Shot:
     def _photo_columns(self) -> dict:
         """Columns of the appearance parameters that are set (none for a view without them)."""
         row: dict = {}
-        if self.perspective:
-            row["camera_fovy_deg"] = float(np.degrees(self.camera.fovy))
-            row["camera_height"] = float(self.distance)
+        row |= self.projection.perspective_columns()
         if self.light is not None and self.light.rgb != (1.0, 1.0, 1.0):
             row |= {f"light_{ch}": float(v) for ch, v in zip("rgb", self.light.rgb, strict=True)}
         for name, look in (("object", self.object_look), ("table", self.table_look)):
@@ -284,14 +252,3 @@ class Shot:
             row |= {"drawn_outline_px": float(d.outline), "drawn_antialias": bool(d.antialias),
                     "drawn_taper": float(d.taper)}
         return row
-
-
-def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    """Rotation matrix of `angle` rad about unit `axis` (Rodrigues)."""
-    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * (k @ k)
-
-
-def rotz(angle: float) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])

@@ -32,6 +32,7 @@ import numpy as np
 
 from vistac.dataset import FINGERS
 from vistac.dataset.schema import MASK_VALUES
+from vistac.projection import displace, rotz
 from vistac_sim.hand.ids import ModelIds
 from vistac_sim.mj import mujoco
 from vistac_sim.render import materials
@@ -40,7 +41,7 @@ from vistac_sim.render.config import RenderCfg
 from vistac_sim.render.drawn import draw_fingers, drawn_boxes, drawn_shapes, fill_mask
 from vistac_sim.render.finish import apply_finish
 from vistac_sim.render.outlines import many_finger_shapes, moved_capsules, polygons_box
-from vistac_sim.render.shot import Shot, TableTexture, rotz
+from vistac_sim.render.shot import Shot, TableTexture
 from vistac_sim.render.topview import TopView, finger_capsules
 
 if TYPE_CHECKING:
@@ -146,24 +147,24 @@ def _apply_shot(scn: mujoco.MjvScene, top: TopView, data: mujoco.MjData, shot: S
     moves = {}
     fingers = {g for f in FINGERS for g in (ids.pad[f], ids.shaft[f])}
     if shot.drawn is None:
-        for f, (dx, dy, da) in zip(FINGERS, shot.overlay, strict=True):
-            if dx or dy or da:
+        for f, overlay in zip(FINGERS, shot.overlay, strict=True):
+            if any(overlay):
                 pivot = data.site_xpos[ids.site[f]].copy()
                 for g in (ids.pad[f], ids.shaft[f]):
-                    moves[g] = (pivot, rotz(da), np.array([dx, dy, 0.0]))
+                    moves[g] = (pivot, overlay)
     for i in range(scn.ngeom):
         g = scn.geoms[i]
         if g.objtype != GEOM:
             continue
         if g.objid in moves:  # a drawn finger: painted over the scene, without a shadow
-            pivot, rot, shift = moves[g.objid]
-            moved = pivot + rot @ (np.asarray(g.pos, float) - pivot) + shift
+            pivot, overlay = moves[g.objid]
+            moved = displace(np.asarray(g.pos, float), pivot, overlay)
             if shot.perspective:  # along the rays through the camera, shrunk alike
                 g.pos[:] = pos + PERSPECTIVE_LIFT * (moved - pos)
                 g.size[:] = PERSPECTIVE_LIFT * np.asarray(g.size, float)
             else:
                 g.pos[:] = moved + lift
-            g.mat[:] = rot @ np.asarray(g.mat, float)
+            g.mat[:] = rotz(overlay[2]) @ np.asarray(g.mat, float)
             g.castshadow = 0
         elif shot.drawn is not None and g.objid in fingers:  # drawn in 2D later: hide
             g.pos[2] = HIDDEN_Z
@@ -263,12 +264,10 @@ def shot_boxes(model: mujoco.MjModel, data: mujoco.MjData, ids: ModelIds,
     s = shot.px_per_m
     caps_px = []
     for k, (f, caps) in enumerate(zip(FINGERS, finger_capsules(model, data, ids), strict=True)):
-        dx, dy, da = shot.overlay[k]
-        pivot, rot = data.site_xpos[ids.site[f]], rotz(da)
+        pivot = data.site_xpos[ids.site[f]]
         moved = []
         for a, b, r in caps:
-            ends = pivot + (np.array([a, b]) - pivot) @ rot.T + np.array([dx, dy, 0.0])
-            p0, p1 = shot.project(ends)
+            p0, p1 = shot.project(displace(np.array([a, b]), pivot, shot.overlay[k]))
             moved.append((p0, p1, r * s))
         caps_px.append(moved)
     return boxes_from_outlines(caps_px, shot.image_size)
