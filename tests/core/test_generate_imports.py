@@ -1,8 +1,9 @@
-"""The generate modules and `vistac.engine` import each other without a cycle.
+"""The modules of `vistac`, `vistac_sim` and `vistac_learn` import each other without a cycle
+(the generate modules and `vistac.engine` even counting the packages above every module).
 
 Every import counts, the ones inside functions too (and those under ``TYPE_CHECKING``): the
-graph is read from the source with `ast`, over all modules of `vistac` and `vistac_sim`, so a
-cycle through a module outside `vistac_sim.generate` is found as well.
+graph is read from the source with `ast`, over all modules of the three packages, so a cycle
+through a module outside `vistac_sim.generate` is found as well.
 """
 
 from __future__ import annotations
@@ -17,7 +18,9 @@ import pytest
 import vistac
 
 ROOT = Path(vistac.__file__).resolve().parent.parent
-PACKAGES = ("vistac", "vistac_sim")
+PACKAGES = ("vistac", "vistac_sim", "vistac_learn")
+# The one cycle left: the API's `evaluate` and the evaluate command's config (issue 31 moves it).
+KNOWN_CYCLES = [["vistac.api", "vistac_learn.evaluate.command"]]
 
 
 def _module_name(path: Path) -> str:
@@ -29,9 +32,11 @@ def _modules() -> dict[str, Path]:
     return {_module_name(p): p for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))}
 
 
-def _imports(name: str, path: Path, known: set[str]) -> set[str]:
+def _imports(name: str, path: Path, known: set[str], parents: bool = True) -> set[str]:
     """The project modules `name` imports anywhere in its source (and the packages above them,
-    which an import runs first)."""
+    which an import runs first; with `parents` False, not `name`'s own packages unless it
+    imports one of them itself: a package's ``__init__`` that imports its modules is no
+    cycle)."""
     package = name if path.name == "__init__.py" else name.rpartition(".")[0]
     found: set[str] = set()
     for node in ast.walk(ast.parse(path.read_text(), str(path))):
@@ -49,7 +54,8 @@ def _imports(name: str, path: Path, known: set[str]) -> set[str]:
         for target in targets:
             parts = target.split(".")
             found |= {m for m in (".".join(parts[:i]) for i in range(1, len(parts) + 1))
-                      if m in known and m != name}
+                      if m in known and m != name
+                      and (parents or m == target or not name.startswith(m + "."))}
     return found
 
 
@@ -109,6 +115,26 @@ def test_the_cycle_finder_finds_a_cycle_through_a_function_level_import(tmp_path
              "vistac_sim.generate.b": _imports("vistac_sim.generate.b", tmp_path / "b.py", known),
              "vistac_sim.generate": set()}
     assert _cycles(graph) == [["vistac_sim.generate.a", "vistac_sim.generate.b"]]
+
+
+def test_the_three_packages_import_each_other_without_a_cycle():
+    """Over every module of the three packages, the only cycle is the known one."""
+    modules = _modules()
+    graph = {name: _imports(name, path, set(modules), parents=False)
+             for name, path in modules.items()}
+    assert "vistac_learn.data.pinch_view" in graph["vistac_learn.data.views"]
+    assert _cycles(graph) == KNOWN_CYCLES
+
+
+def test_a_package_init_importing_its_modules_is_no_cycle_but_naming_its_content_is(tmp_path):
+    (tmp_path / "a.py").write_text("from vistac_learn.models.b import f\n")
+    (tmp_path / "c.py").write_text("from vistac_learn.models import create_model\n")
+    known = {"vistac_learn", "vistac_learn.models", "vistac_learn.models.a",
+             "vistac_learn.models.b", "vistac_learn.models.c"}
+    assert _imports("vistac_learn.models.a", tmp_path / "a.py", known, parents=False) == \
+        {"vistac_learn.models.b"}
+    assert "vistac_learn.models" in _imports("vistac_learn.models.c", tmp_path / "c.py", known,
+                                             parents=False)
 
 
 def test_generation_and_the_engine_import_each_other_without_a_cycle(graph):

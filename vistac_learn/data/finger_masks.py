@@ -16,13 +16,10 @@ its reason (the next candidate hue is tried first): `explained_finger_masks`.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import cv2
 import numpy as np
 
-if TYPE_CHECKING:
-    from vistac_learn.data.fingertips import LocatorCfg
+from vistac_learn.data.locator_cfg import LocatorCfg
 
 
 def hue_deg(rgb) -> float:

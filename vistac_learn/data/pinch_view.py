@@ -29,7 +29,7 @@ import numpy as np
 
 from vistac.dataset import FINGERS
 from vistac_learn.data.fingertips import Fingertip
-from vistac_learn.data.views import (
+from vistac_learn.data.view_base import (
     PINCH_VIEW,
     Aug,
     SampleInfo,
