@@ -19,7 +19,8 @@ import vistac
 
 ROOT = Path(vistac.__file__).resolve().parent.parent
 PACKAGES = ("vistac", "vistac_sim", "vistac_learn")
-# The one cycle left: the API's `evaluate` and the evaluate command's config (issue 31 moves it).
+# The one cycle left (allowed, not required): the API's `evaluate` and the evaluate command's
+# config (issue 31 moves it out of the command).
 KNOWN_CYCLES = [["vistac.api", "vistac_learn.evaluate.command"]]
 
 
@@ -123,7 +124,7 @@ def test_the_three_packages_import_each_other_without_a_cycle():
     graph = {name: _imports(name, path, set(modules), parents=False)
              for name, path in modules.items()}
     assert "vistac_learn.data.pinch_view" in graph["vistac_learn.data.views"]
-    assert _cycles(graph) == KNOWN_CYCLES
+    assert [c for c in _cycles(graph) if c not in KNOWN_CYCLES] == []
 
 
 def test_a_package_init_importing_its_modules_is_no_cycle_but_naming_its_content_is(tmp_path):
