@@ -293,12 +293,15 @@ def open_dataset(root: str | Path, require_complete: bool = True) -> DatasetTabl
         raise UserError(f"{ppath}: row {i}: config_id {presses['config_id'].iat[i]} repeat "
                         f"{presses['repeat'].iat[i]} appears more than once")
     presses = presses.sort_values(["config_id", "repeat"], kind="stable").reset_index(drop=True)
-    groups = {int(k): g.index.to_numpy() for k, g in presses.groupby("config_id")}
-    cones: dict[str, list[np.ndarray]] = {f: [] for f in FINGERS}
-    for row, cid in enumerate(configs["config_id"].tolist()):
-        idx = groups.get(int(cid))
-        if idx is None:
-            raise UserError(f"{cpath}: row {row}: config_id {cid} has no presses")
-        for f in FINGERS:
-            cones[f].append(presses.loc[idx, label_columns(f)].to_numpy(float))
+    # presses are sorted by config_id: each configuration's presses are one run of rows
+    pids, cids = presses["config_id"].to_numpy(), configs["config_id"].to_numpy()
+    starts, ends = np.searchsorted(pids, cids, "left"), np.searchsorted(pids, cids, "right")
+    if (starts == ends).any():
+        row = int(np.flatnonzero(starts == ends)[0])
+        raise UserError(f"{cpath}: row {row}: config_id {cids[row]} has no presses")
+    cones: dict[str, list[np.ndarray]] = {}
+    for f in FINGERS:
+        labels = presses[label_columns(f)].to_numpy(float)
+        cones[f] = [labels[a:b].copy() for a, b in zip(starts.tolist(), ends.tolist(),
+                                                        strict=True)]
     return DatasetTables(root, manifest, configs, presses, cones)
