@@ -28,7 +28,6 @@ from vistac_learn.train.config import FREEZE, TrainCfg
 from vistac_learn.train.job import JobCfg, JobResult, ScoreCfg
 
 KIND = "sim2real"
-ARMS = ("sim-only", "scratch", "finetune")
 METRICS = ("test_angle_deg", "test_in_cone_pct", "val_angle_deg", "sim_test_angle_deg")
 
 

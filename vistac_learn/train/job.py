@@ -20,6 +20,7 @@ from typing import Any
 
 from vistac import engine
 from vistac.config import Config, param
+from vistac.dataset import SPLITS
 from vistac.errors import UserError
 from vistac_learn.data.samples import fingers_of
 from vistac_learn.train.checkpoints import BEST_KEYS, RESTART, load_checkpoint
@@ -37,7 +38,7 @@ class ScoreCfg(Config):
     """A split to score the job's best weights on after training."""
 
     name: str = param(help="name of the score (folder eval/<name> of the run)")
-    split: str = param("test", choices=("train", "val", "test"), help="split to score")
+    split: str = param("test", choices=SPLITS, help="split to score")
     data: str | None = param(None, help="dataset to score on (default: the run's own; "
                              "another one is scored across datasets)")
 

@@ -35,8 +35,6 @@ import numpy as np
 
 from vistac.config import Config, param
 
-STAGES = ("grasp", "force", "sensor", "image")
-
 
 @dataclass(frozen=True)
 class Effect:
