@@ -50,7 +50,7 @@ def register_model(
         name: lower-case slug, e.g. "schoeconv100-v3-fc160".
         display: the thesis spelling, e.g. "SchoeConv100-V3(FC160)"; also accepted by
             `create_model` (case-insensitively). Defaults to `name`.
-        description: one line shown by `vistac models --long` and `model_info`.
+        description: one line, returned by `model_info` (``"description"``).
 
     Returns:
         The decorator, which returns the builder unchanged.

@@ -7,9 +7,10 @@ Two protocols, each a complete set of defaults (every option overrides either):
   crops' frames) and `pinchnet` inside `PinchModel`: one network reads each crop's contact point
   and normal, the label is composed from them (closing axis, friction cone), and the
   simulator's contact points and normals, where the dataset has them, are auxiliary targets
-  (``--aux-weight``); AdamW with a one-cycle learning-rate schedule, batches of 32, 15
-  epochs; mirror and crop-jitter augmentation drawn per batch; the best epoch by the
-  validation median angle to the cone mean.
+  (``--aux-weight``); AdamW with a one-cycle learning-rate schedule, batches of 32, 25
+  epochs; mirror and crop-jitter augmentation, and half the training images perturbed toward
+  photographs (``--appearance 0.5``); the best epoch by the validation median angle to the
+  cone mean; at evaluation each prediction averaged with its mirrored view's (``tta``).
 - ``study``: the reference study's protocol (docs/study.md section 8): SchoeConv100-V3(FC160) on
   ``edge-index`` images at 20 fixed rotations of 18 degrees, index finger, MSE, Adam with a
   constant lr 1e-4, weight decay 1e-5, batches of 5, 20 epochs; selection by the validation
