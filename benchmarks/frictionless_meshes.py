@@ -76,7 +76,6 @@ def main(argv: list[str] | None = None) -> int:
     warnings.simplefilter("ignore")
     work = (args.work or Path(tempfile.mkdtemp(prefix="frictionless_meshes_"))).resolve()
     os.environ.setdefault("VISTAC_CACHE", str(work / "vistac_cache"))
-    sys.path.insert(0, str(ROOT))
     from mesh_collection import derived, fetch_pybullet
 
     files = fetch_pybullet(work, args.wheel) + derived(work / "derived")

@@ -189,7 +189,6 @@ def main() -> None:
     bare_med, gen_med, bare_cpu_med, gen_cpu_med = (statistics.median(p[i] for p in pairs)
                                                     for i in range(4))
 
-    sys.path.insert(0, str(Path(__file__).parent))
     from generate_breakdown import profile_bare, profile_generate
 
     parts = {"generate": profile_generate(args.profile_n, args.seed, args.out / "prof_gen"),

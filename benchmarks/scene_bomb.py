@@ -9,6 +9,7 @@ to the refusal and the length of the one stderr line. Writes `benchmarks/results
 
 from __future__ import annotations
 
+import argparse
 import subprocess
 import sys
 import tempfile
@@ -36,7 +37,8 @@ FILES = {
 }
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args(argv)
     work = Path(tempfile.mkdtemp(prefix="scene_bomb_"))
     lines = ["# Hostile scene files: time to refusal, error line length", "",
              "`vistac generate --out D --n 2 --scene FILE` in a fresh process (start-up "
