@@ -21,7 +21,6 @@ import pandas as pd  # noqa: E402
 from vistac.dataset import FINGERS  # noqa: E402
 from vistac.dataset.reader import DatasetTables  # noqa: E402
 from vistac.dataset.schema import force_columns  # noqa: E402
-from vistac_learn.inspect.arrows import mean_label  # noqa: E402
 from vistac_learn.metrics.directions import angles_deg, wrap_abs_deg  # noqa: E402
 
 CORE_PREFIXES = ("config_id", "object_", "image", "split", "camera_x", "camera_y", "px_per_m",
@@ -36,27 +35,42 @@ def label_stats(tables: DatasetTables) -> pd.DataFrame:
     """Per configuration and finger: split, family, label angle (deg), cone width (deg) and the
     presses' median |F| (N; NaN without forces). One row per (configuration, finger)."""
     c = tables.configs
+    n = len(c)
     force = _press_magnitudes(tables)
-    rows = []
+    cid = c["config_id"].to_numpy() if "config_id" in c else np.arange(n)
+    split = c["split"].astype(str).to_numpy() if "split" in c else np.full(n, "-")
+    family = c["object_family"].astype(str).to_numpy() if "object_family" in c else \
+        c["object_id"].astype(str).to_numpy() if "object_id" in c else np.full(n, "-")
+    parts = []
     for f in FINGERS:
-        cones = tables.cones.get(f, [])
-        for r in range(len(c)):
-            cone = cones[r] if r < len(cones) else np.zeros((0, 2))
-            m = mean_label(cone)
-            angle = float(angles_deg(m[0], -m[1])) if m is not None else np.nan
-            width = np.nan
-            if len(cone):
-                rel = angles_deg(cone[:, 0], -cone[:, 1]) - angle
-                rel = (rel + 180.0) % 360.0 - 180.0
-                width = float(rel.max() - rel.min())
-            cid = c["config_id"].iat[r] if "config_id" in c else r
-            rows.append({"finger": f, "row": r, "config_id": cid,
-                         "split": str(c["split"].iat[r]) if "split" in c else "-",
-                         "family": str(c["object_family"].iat[r]) if "object_family" in c
-                         else str(c["object_id"].iat[r]) if "object_id" in c else "-",
-                         "angle_deg": angle, "cone_width_deg": width,
-                         "force_n": force.get(f, {}).get(cid, np.nan)})
-    return pd.DataFrame(rows)
+        angle, width = cone_angles(tables.cones.get(f, []), n)
+        mag = force.get(f, {})
+        parts.append(pd.DataFrame({
+            "finger": f, "row": np.arange(n), "config_id": cid, "split": split,
+            "family": family, "angle_deg": angle, "cone_width_deg": width,
+            "force_n": [mag.get(k, np.nan) for k in cid.tolist()]}))
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
+
+
+def cone_angles(cones: list[np.ndarray], n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(n,) angle of each configuration's mean label (`mean_label`) and (n,) its cone width
+    (range of the presses' angles around it), degrees; NaN for a configuration without labels."""
+    angle, width = np.full(n, np.nan), np.full(n, np.nan)
+    sizes = np.array([len(cones[r]) if r < len(cones) else 0 for r in range(n)], int)
+    have = np.flatnonzero(sizes > 0)
+    if not len(have):
+        return angle, width
+    labels = np.concatenate([cones[r] for r in have])
+    starts = np.r_[0, np.cumsum(sizes[have])[:-1]]
+    mean = np.add.reduceat(labels, starts, axis=0) / sizes[have, None]
+    norm = np.hypot(mean[:, 0], mean[:, 1])
+    mean = np.where(norm[:, None] > 1e-12, mean / np.maximum(norm, 1e-300)[:, None],
+                    np.array([0.0, -1.0]))
+    angle[have] = angles_deg(mean[:, 0], -mean[:, 1])
+    rel = angles_deg(labels[:, 0], -labels[:, 1]) - np.repeat(angle[have], sizes[have])
+    rel = (rel + 180.0) % 360.0 - 180.0
+    width[have] = np.maximum.reduceat(rel, starts) - np.minimum.reduceat(rel, starts)
+    return angle, width
 
 
 def _press_magnitudes(tables: DatasetTables) -> dict[str, dict]:
@@ -108,6 +122,7 @@ def plot_labels(stats: pd.DataFrame, by: str, out: Path) -> bool:
             ax.set_title(f"{f}: {title}", fontsize=9)
             ax.tick_params(labelsize=8)
         axes[i, 0].legend(fontsize=7, title=by, title_fontsize=7)
+        axes[i, 0].set_ylabel("share of the group's configurations", fontsize=8)
     fig.tight_layout()
     fig.savefig(out, dpi=80)
     plt.close(fig)
