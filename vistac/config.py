@@ -118,6 +118,26 @@ class Config:
                 object.__setattr__(self, f.name, checked)
 
 
+def checked(cfg: Any, prefix: str = "") -> Any:
+    """`cfg` checked again as a whole, its nested configs too: a config is checked when it is
+    made, but a caller may have changed one since (``object.__setattr__``) or put an unchecked
+    part in it; the work of a command starts from the checked copy.
+
+    Raises:
+        ConfigError: the first field that its declaration does not allow (dotted for a nested
+            config, e.g. ``physics.friction``).
+    """
+    changes = {f.name: checked(getattr(cfg, f.name), f"{prefix}{f.name}.")
+               for f in dataclasses.fields(cfg)
+               if f.init and isinstance(getattr(cfg, f.name), Config)}
+    try:
+        return dataclasses.replace(cfg, **changes)
+    except ConfigError as exc:  # this level's own fields (a nested one raised with its path)
+        if not prefix:
+            raise
+        raise ConfigError(prefix + exc.key, exc.template, exc.others) from None
+
+
 @functools.cache
 def type_hints(cls: type) -> dict[str, Any]:
     """The resolved field annotations of a dataclass."""
@@ -134,6 +154,8 @@ def check_value(value: Any, hint: Any, meta: Mapping[str, Any] | None = None) ->
         ValueError: what is wrong with it (without the field's name).
     """
     meta = meta or {}
+    if type(value).__module__ == "numpy" and hasattr(value, "tolist"):
+        value = value.tolist()  # a NumPy scalar (or array) as the Python number (or list)
     origin, args = typing.get_origin(hint), typing.get_args(hint)
     if origin in (types.UnionType, typing.Union):
         if value is None and type(None) in args:

@@ -8,12 +8,14 @@ use (pandas on demand, torch never), so holding one costs nothing. The folders a
 from __future__ import annotations
 
 import json
+import math
+import numbers
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from vistac.errors import UserError
+from vistac.errors import UserError, brief
 
 
 @dataclass(frozen=True)
@@ -65,7 +67,10 @@ class Dataset:
         Raises:
             UserError: no such configuration.
         """
-        rows = self.configs.index[self.configs["config_id"] == config_id]
+        if not isinstance(config_id, numbers.Integral) or isinstance(config_id, bool):
+            raise UserError(f"config_id: expected an integer (one of Dataset.config_ids), got "
+                            f"{brief(config_id)}")
+        rows = self.configs.index[self.configs["config_id"] == int(config_id)]
         if len(rows) == 0:
             raise UserError(f"{self.path}: no configuration {config_id}")
         return self.tables.image_path(int(rows[0]))
@@ -133,12 +138,24 @@ class Run:
             if (path / "metrics.csv").is_file() else []
         if not rows:
             raise UserError(f"{path}: the run has not finished an epoch (no metrics.csv rows)")
-        best = int(load_checkpoint(path / "checkpoints" / "best.pt", BEST_KEYS, fix)["epoch"])
-        fingers = [f for f in ("index", "thumb")
-                   if f"val_{f}_angle_to_mean_median_deg" in rows[0]]
-        row = next((r for r in rows if int(r["epoch"]) == best), rows[-1])
-        objective = sum(row[f"val_{f}_angle_to_mean_median_deg"] for f in fingers) / len(fingers)
-        return cls(path, best, float(objective))
+        best_pt = path / "checkpoints" / "best.pt"
+        best = load_checkpoint(best_pt, BEST_KEYS, fix)["epoch"]
+        if not isinstance(best, numbers.Integral) or isinstance(best, bool) or best < 1:
+            raise UserError(f"{best_pt}: its epoch is {brief(best)}, not a whole number >= 1; "
+                            f"{fix}")
+        metrics = path / "metrics.csv"
+        row = next((r for r in rows if r["epoch"] == best), None)
+        if row is None:
+            raise UserError(f"{metrics}: no row of epoch {best}, the best checkpoint's (it has "
+                            f"{len(rows)} rows); {fix}")
+        columns = [f"val_{f}_angle_to_mean_median_deg" for f in ("index", "thumb")]
+        values = [row[c] for c in columns if c in row]
+        objective = sum(values) / len(values) if values else math.nan
+        if not math.isfinite(objective):
+            raise UserError(f"{metrics}: epoch {best}: no finite validation objective "
+                            f"({' / '.join(c for c in columns if c in row) or 'no such column'}"
+                            f"); {fix}")
+        return cls(path, int(best), float(objective))
 
     @cached_property
     def config(self) -> dict[str, Any]:

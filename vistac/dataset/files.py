@@ -19,7 +19,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from vistac.dataset.schema import MANIFEST, SPLITS
+from vistac.dataset.schema import FINGERS, LABEL_COLUMNS, MANIFEST, SPLITS, label_columns
 from vistac.errors import UserError
 
 if TYPE_CHECKING:
@@ -150,6 +150,31 @@ def check_out_dir(path: str | Path, option: str = "--out") -> Path:
     if not os.access(existing, os.W_OK | os.X_OK):
         raise UserError(f"{option} {path}: {existing} is not writable")
     return path
+
+
+LABEL_TOLERANCE = 1e-3
+"""Largest difference of a label's length from 1 (labels are written as float64 unit vectors)."""
+
+
+def bad_label(labels: Any) -> tuple[int, str] | None:
+    """The first row of `labels` that is not a finite unit vector per finger, and why; None
+    when every row is one. Checked before a dataset is declared written or checked.
+
+    Args:
+        labels: A table (DataFrame, Arrow table or mapping) with the label columns.
+    """
+    columns = {c: np.asarray(labels[c], float) for c in LABEL_COLUMNS}
+    for f in FINGERS:
+        r_y, r_z = (columns[c] for c in label_columns(f))
+        with np.errstate(all="ignore"):
+            norms = np.hypot(r_y, r_z)
+        bad = ~np.isfinite(norms) | (np.abs(norms - 1) > LABEL_TOLERANCE)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            what = ("not finite" if not np.isfinite(norms[i]) else
+                    f"not a unit vector (length {norms[i]:.4g})")
+            return i, f"({f}) label (r_y, r_z) = ({r_y[i]:.4g}, {r_z[i]:.4g}) is {what}"
+    return None
 
 
 def table_counts(split, object_id, presses: int) -> dict[str, Any]:

@@ -31,5 +31,5 @@ class ForceNoise(Effect):
 
 register_effect(
     "noise", lambda noise: [ForceNoise(relative_std=noise)] if noise > 0 else [],
-    value=param(0.0, ge=0, help="relative std of the per-press force measurement noise "
-                "(0 disables the effect)"))
+    value=param(0.0, ge=0, le=10, help="relative std of the per-press force measurement noise "
+                "(0 disables the effect)", why="beyond, the labels are noise alone"))

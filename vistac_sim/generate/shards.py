@@ -17,11 +17,13 @@ from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
+import pyarrow.parquet as pq
 
 from vistac.dataset import FORMAT_VERSION, MANIFEST, assign_splits
 from vistac.dataset.card import write_card
 from vistac.dataset.files import (
     atomic_write_json,
+    bad_label,
     remove_stale_temporaries,
     table_counts,
     temporary_path,
@@ -32,6 +34,7 @@ from vistac.dataset.recordings import recording_name
 from vistac.dataset.schema import (
     CONFIGS,
     IMAGES,
+    LABEL_COLUMNS,
     MASKS,
     PARTIAL,
     PRESSES,
@@ -301,6 +304,11 @@ def finalize(out: Path, n_chunks: int, n: int, manifest: dict, split_by: str, fr
     write_row_groups(out / CONFIGS, schemas[0].insert(4, pa.field("split", pa.string())),
                      labelled(buckets[0].sorted(["config_id"])))
     write_row_groups(out / PRESSES, schemas[1], buckets[1].sorted(["config_id", "repeat"]))
+    bad = bad_label(pq.read_table(out / PRESSES, columns=LABEL_COLUMNS))
+    if bad is not None:  # never declared written: no manifest
+        raise UserError(f"{out / PRESSES}: row {bad[0]}: {bad[1]}; these settings give no "
+                        "usable labels (e.g. a --noise far above the force): generate again "
+                        "with other settings into another --out")
     counts = {**table_counts(split_of, cols["object_id"], n_presses),
               "families": dict(Counter(cols["object_family"].tolist()))}
     from vistac_sim.generate.objects_report import object_summary

@@ -16,8 +16,9 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from vistac.dataset.files import bad_label
 from vistac.dataset.recordings import recording_name
-from vistac.dataset.schema import CONFIGS, IMAGES, MANIFEST, MASKS, PRESSES
+from vistac.dataset.schema import CONFIGS, IMAGES, LABEL_COLUMNS, MANIFEST, MASKS, PRESSES
 from vistac.errors import UserError
 
 PNG_HEAD = b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR"
@@ -115,10 +116,14 @@ def check_complete(out: Path, config: dict[str, Any]) -> dict[str, Any]:
                         f"({', '.join(keys) or 'config'}); choose another --out")
     try:
         names = pq.read_table(out / CONFIGS, columns=["config_id", "image"])
-        pq.read_metadata(out / PRESSES)
+        labels = pq.read_table(out / PRESSES, columns=LABEL_COLUMNS)
     except (OSError, pa.ArrowException) as exc:
         raise UserError(f"{out}: a table does not read back ({' '.join(str(exc).split())}); "
                         f"delete {out} and generate again") from None
+    bad = bad_label(labels)
+    if bad is not None:
+        raise UserError(f"{out / PRESSES}: row {bad[0]}: {bad[1]}; the dataset in {out} is not "
+                        "usable: delete it and generate again")
     images = names["image"].to_pylist()
     recordings = ([recording_name(int(i)) for i in names["config_id"].to_pylist()]
                   if (config.get("recording") or {}).get("write") else [])
