@@ -22,7 +22,8 @@ class ObjectsCfg(Config):
         "families")
     n_objects: int = param(32, ge=1, le=100_000, help="size of the procedural object library")
     footprint: tuple[float, float] = param(
-        (0.035, 0.075), gt=0, metavar=("MIN", "MAX"),
+        (0.035, 0.075), ge=0.001, metavar=("MIN", "MAX"),
+        why="an object smaller than 1 mm cannot be built as a mesh",
         help="longest top-view side of objects, metres")
     height: tuple[float, float] = param((0.03, 0.05), gt=0, le=1,
                                         help="m, extrusion height of procedural objects")

@@ -12,7 +12,7 @@ class PhysicsCfg(Config):
     """MuJoCo settings of the press: contacts, friction, and the two phases of a press
     (`vistac_sim.physics.press`)."""
 
-    friction: float = param(0.8, ge=0,
+    friction: float = param(0.8, ge=0, le=10, why="MuJoCo's contact solve fails far beyond",
                             help="sliding friction coefficient, pad on object (0: "
                             "frictionless). Default 0.8: an elastomer fingertip pad on dry, "
                             "hard plastic, wood or metal (handbook values ~0.5-1.0); see the "
