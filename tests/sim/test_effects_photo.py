@@ -15,6 +15,7 @@ from pressed_scenes import pressed_scene
 from vistac.cli import main
 from vistac.dataset import open_dataset
 from vistac.errors import UserError
+from vistac.textures import BANK_PHOTOS
 from vistac_sim.effects import EffectsCfg, build_pipeline
 from vistac_sim.effects.blur import Blur, BlurCfg
 from vistac_sim.effects.drawn_overlay import DrawnOverlay, DrawnOverlayCfg
@@ -75,7 +76,7 @@ def test_texture_bank_is_fixed_and_holds_every_kind():
             for t in texs:
                 assert t.shape == (textures.SIZE, textures.SIZE, 3) and t.dtype == np.uint8
                 assert t.std() > 2, kind  # a pattern, not a flat colour
-    assert len(obj["photo"]) == len(textures.OBJECT_PHOTOS)
+    assert len(obj["photo"]) == len(BANK_PHOTOS["object"])
     # a pure function of (kind, variant): the same in every process
     textures.procedural.cache_clear()
     again = textures.bank("object")
@@ -87,7 +88,7 @@ def test_user_textures_join_the_photographs(tmp_path):
         img = np.full((40, 60, 3), 50 * (i + 1), np.uint8)
         cv2.imwrite(str(tmp_path / f"t{i}.png"), img)
     bank = textures.bank("table", str(tmp_path))
-    assert len(bank["photo"]) == len(textures.TABLE_PHOTOS) + 2
+    assert len(bank["photo"]) == len(BANK_PHOTOS["table"]) + 2
     assert bank["photo"][-1].mean() == pytest.approx(100, abs=1)
     (tmp_path / "empty").mkdir()
     with pytest.raises(UserError, match="no readable image"):

@@ -6,8 +6,8 @@ masks can be passed as `Scene.labels`), and each perturbation below changes how 
 *looks* while the geometry, and so every label, stays what the simulator made. Axes:
 
 - ``table``: the table replaced by a texture: a photograph from scikit-image's sample data
-  (`PHOTOS`; public-domain or CC0 images shipped with the package), or procedural wood grain,
-  woven cloth or paper;
+  (`vistac.textures.PERTURB_PHOTOS`: the photographs of both packages are listed there), or
+  procedural wood grain, woven cloth or paper;
 - ``object``: the object textured (photograph, wood, stripes, noise or a printed label), with
   shading across it and a specular highlight;
 - ``overlay``: the finger overlays restyled as a person would draw them: hue within +-20 deg of
@@ -42,15 +42,12 @@ import numpy as np
 
 from vistac.dataset import FINGERS
 from vistac.errors import UserError
+from vistac.textures import PERTURB_PHOTOS, photo
 
 TABLE, OBJECT = 0, 1
 FINGER_LABEL = {f: 2 + i for i, f in enumerate(FINGERS)}  # index 2, thumb 3 (the masks' codes)
 
-# scikit-image sample photographs that ship with the package (no download)
-TABLE_PHOTOS = ("brick", "gravel", "grass", "coffee", "chelsea", "rocket", "camera")
-OBJECT_PHOTOS = ("coffee", "chelsea", "astronaut", "rocket", "immunohistochemistry", "coins",
-                 "camera", "text", "page")
-PHOTOS = tuple(sorted(set(TABLE_PHOTOS) | set(OBJECT_PHOTOS)))
+PHOTOS = tuple(sorted({name for names in PERTURB_PHOTOS.values() for name in names}))
 
 
 @dataclass(frozen=True)
@@ -100,13 +97,9 @@ def segment(rgb: np.ndarray, finger_rgb: dict[str, tuple], table_rgb: tuple,
 # ---------------------------------------------------------------------------------- textures
 @functools.cache
 def _photo(name: str) -> np.ndarray:
-    """A scikit-image sample photograph as (H, W, 3) float32 RGB, 0-255."""
-    import skimage.data
-
-    img = np.asarray(getattr(skimage.data, name)())
-    if img.ndim == 2:
-        img = np.repeat(img[..., None], 3, axis=2)
-    return np.ascontiguousarray(img[..., :3]).astype(np.float32)
+    """A scikit-image sample photograph (`vistac.textures.photo`) as (H, W, 3) float32 RGB,
+    0-255."""
+    return photo(name).astype(np.float32)
 
 
 def _smooth_noise(h: int, w: int, cell: float, rng: np.random.Generator) -> np.ndarray:
@@ -211,11 +204,11 @@ def label_texture(h: int, w: int, rng: np.random.Generator) -> np.ndarray:
 
 
 TABLE_TEXTURES: dict[str, Callable] = {
-    "photo": functools.partial(photo_texture, names=TABLE_PHOTOS),
+    "photo": functools.partial(photo_texture, names=PERTURB_PHOTOS["table"]),
     "wood": wood_texture, "cloth": cloth_texture, "paper": paper_texture,
 }
 OBJECT_TEXTURES: dict[str, Callable] = {
-    "photo": functools.partial(photo_texture, names=OBJECT_PHOTOS),
+    "photo": functools.partial(photo_texture, names=PERTURB_PHOTOS["object"]),
     "wood": wood_texture, "stripes": stripes_texture, "noise": noise_texture,
     "label": label_texture,
 }

@@ -3,8 +3,9 @@
 Two banks of square RGB textures, keyed by kind: the object bank (wood grain, noise, stripes,
 printed labels, photographs) and the table bank (wood, cloth, paper, photographs). Every texture
 is a pure function of its kind and variant number (fixed seeds), so a dataset does not depend on
-which process made it. Photographs are scikit-image's sample photographs (`skimage.data`; CC0 or
-public domain, see docs/appearance.md) and, with ``--textures DIR``, the user's own images.
+which process made it. Photographs are scikit-image's sample photographs of
+`vistac.textures.BANK_PHOTOS` (the photographs of both packages are listed there) and, with
+``--textures DIR``, the user's own images.
 
 A scene that asks for textures gets the whole bank in its model (`vistac_sim.render.materials`);
 a configuration only picks one texture, tint and scale (`vistac_sim.render.shot.Surface`).
@@ -19,17 +20,12 @@ import cv2
 import numpy as np
 
 from vistac.errors import UserError
+from vistac.textures import BANK_PHOTOS, cut, photo
 
 SIZE = 256  # texels per side of every texture
 VARIANTS = 3  # textures per procedural kind
 OBJECT_KINDS = ("wood", "noise", "stripes", "label", "photo")
 TABLE_KINDS = ("wood", "cloth", "paper", "photo")
-# scikit-image's sample photographs (shipped with the package, no download): (name, crop) with
-# crop (top, bottom, left, right) in fractions of the photograph.
-OBJECT_PHOTOS = (("coffee", (0.0, 1.0, 0.0, 1.0)), ("chelsea", (0.0, 1.0, 0.0, 1.0)),
-                 ("astronaut", (0.0, 1.0, 0.0, 1.0)), ("rocket", (0.0, 1.0, 0.2, 0.8)))
-TABLE_PHOTOS = (("gravel", (0.0, 1.0, 0.0, 1.0)), ("brick", (0.0, 1.0, 0.0, 1.0)),
-                ("grass", (0.0, 1.0, 0.0, 1.0)))
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 
 
@@ -58,16 +54,8 @@ def procedural(which: str, kind: str, variant: int) -> np.ndarray:
 
 @functools.lru_cache(maxsize=2)
 def sample_photos(which: str) -> tuple[np.ndarray, ...]:
-    """scikit-image's sample photographs of a bank, cropped and resized to SIZE."""
-    import skimage.data
-
-    out = []
-    for name, (t, b, left, r) in OBJECT_PHOTOS if which == "object" else TABLE_PHOTOS:
-        img = getattr(skimage.data, name)()
-        h, w = img.shape[:2]
-        img = img[int(t * h):int(b * h), int(left * w):int(r * w)]
-        out.append(_square(img))
-    return tuple(out)
+    """scikit-image's sample photographs of a bank (`BANK_PHOTOS`), cut and resized to SIZE."""
+    return tuple(_square(cut(photo(name), crop)) for name, crop in BANK_PHOTOS[which])
 
 
 @functools.lru_cache(maxsize=4)
