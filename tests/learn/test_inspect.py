@@ -97,11 +97,14 @@ def test_damaged_dataset_is_inspected_as_far_as_readable(tmp_path):
     root = make_dataset(tmp_path / "d", n=8, repeats=3, size=64)
     (root / "presses.parquet").write_bytes(b"PAR1 truncated")
     (root / "images" / "000003.png").unlink()
+    (root / "images" / "000005.png").write_bytes(b"not a png")
     before = _digests(root)
     rep = inspect_dataset(root, InspectCfg(out=str(tmp_path / "r")))
     notes = [line for line in rep.lines if line.startswith("note:")]
     assert any("presses.parquet: unreadable" in n for n in notes), notes
     assert any("1 of 8 images missing (first: 000003.png)" in n for n in notes), notes
+    assert any("1 of the contact sheet's images unreadable (first: 000005.png)" in n
+               for n in notes), notes
     assert all("\n" not in n for n in notes)
     assert (tmp_path / "r" / "contact_sheet.png").is_file()  # the images are still shown
     after = _digests(root)

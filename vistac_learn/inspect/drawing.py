@@ -10,7 +10,7 @@ from vistac.dataset.schema import MASK_VALUES
 
 MEAN_RGB = (0, 0, 0)
 """The mean label's arrow."""
-PRESS_RGB = (255, 150, 0)
+PRESS_RGB = (255, 140, 0)
 """Each press's direction (together: the cone)."""
 PRED_RGB = (30, 90, 255)
 """A model's prediction (`vistac inspect RUN`)."""
@@ -41,8 +41,8 @@ def draw_finger(img: np.ndarray, tip: np.ndarray, mean: np.ndarray | None,
     direction's arrow, all from the fingertip centre `tip` (image pixels)."""
     length = ARROW_FRACTION * img.shape[1]
     width = max(1, round(img.shape[1] / 120))
-    for d in presses:
-        line(img, tip, d, 0.85 * length, PRESS_RGB, width)
+    for d in presses:  # longer than the arrow: the cone fans out beyond its head
+        line(img, tip, d, 1.4 * length, PRESS_RGB, 1)
     if mean is not None:
         line(img, tip, mean, length, MEAN_RGB, width + 1, head=True)
     if pred is not None:

@@ -76,11 +76,14 @@ def inspect_dataset(root: str | Path, cfg: InspectCfg | None = None) -> InspectR
     rep = InspectReport(out, [])
     if not (root / CARD).exists() and t.manifest and (root / MANIFEST).is_file():
         rep.card = write_card(root, t.manifest)
-    sheet = {"rows": [], "not_found": {}}
+    sheet: dict = {"rows": [], "not_found": {}}
     if len(t.configs) and "image" in t.configs:
         sheet = contact_sheet(t, out / SHEET, per_group=cfg.per_group, max_tiles=cfg.max_tiles,
                               columns=cfg.columns, size=cfg.tile, seed=cfg.seed,
                               missing=set(readable.missing_images.tolist()))
+    if sheet.get("unreadable"):
+        readable.notes.append(f"{root / 'images'}: {len(sheet['unreadable'])} of the contact "
+                              f"sheet's images unreadable (first: {sheet['unreadable'][0]})")
     stats = distributions.label_stats(t)
     figures = {}
     for by in ("family", "split"):

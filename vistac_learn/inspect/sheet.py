@@ -12,6 +12,7 @@ import pandas as pd
 
 from vistac.dataset import FINGERS
 from vistac.dataset.reader import DatasetTables
+from vistac.errors import UserError
 from vistac_learn.data.variants import read_rgb
 from vistac_learn.inspect import drawing
 from vistac_learn.inspect.arrows import finger_arrows, has_simulator_tips
@@ -41,12 +42,18 @@ def tile(tables: DatasetTables, row: int, simulated: bool, size: int,
     """One configuration's tile and what was found ({finger: arrows or None})."""
     c = tables.configs.iloc[row]
     label = f"{c.get('config_id', row)} {c.get('split', '')} {c.get('object_family', '')}"
-    if row in missing:
+    rgb = None
+    if row not in missing:
+        try:
+            rgb = read_rgb(tables.image_path(row))
+        except UserError:
+            pass  # a damaged file: said on the tile and counted by `contact_sheet`
+    if rgb is None:
         img = np.full((size, size, 3), 255, np.uint8)
-        cv2.putText(img, "image missing", (6, size // 2), cv2.FONT_HERSHEY_SIMPLEX, 0.45,
-                    (200, 0, 0), 1, cv2.LINE_AA)
-        return drawing.caption(img, label), {}
-    rgb = read_rgb(tables.image_path(row))
+        why = "image missing" if row in missing else "image unreadable"
+        cv2.putText(img, why, (6, size // 2), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (200, 0, 0), 1,
+                    cv2.LINE_AA)
+        return drawing.caption(img, label), {"unreadable": row not in missing}
     found = finger_arrows(tables, row, rgb, simulated)
     img = rgb.copy()
     mask_path = tables.mask_path(row)
@@ -63,16 +70,21 @@ def tile(tables: DatasetTables, row: int, simulated: bool, size: int,
 
 def contact_sheet(tables: DatasetTables, out: Path, *, per_group: int, max_tiles: int,
                   columns: int, size: int, seed: int, missing: set[int]) -> dict:
-    """Write the contact sheet PNG `out`; returns what it shows (rows, fingers not found)."""
+    """Write the contact sheet PNG `out`; returns what it shows (rows, fingers not found,
+    unreadable image files among the sampled ones)."""
     rows = sample_rows(tables.configs, per_group, max_tiles, seed)
     simulated = has_simulator_tips(tables)
     tiles, not_found = [], {f: 0 for f in FINGERS}
+    unreadable = []
     for r in rows:
         t, found = tile(tables, int(r), simulated, size, missing)
         tiles.append(t)
-        for f in FINGERS:
-            not_found[f] += int(found.get(f) is None and int(r) not in missing)
+        if found.get("unreadable"):
+            unreadable.append(tables.image_path(int(r)).name)
+        elif int(r) not in missing:
+            for f in FINGERS:
+                not_found[f] += int(found.get(f) is None)
     if tiles:
         drawing.write_png(out, drawing.grid(tiles, columns))
     return {"rows": rows.tolist(), "tips": "simulator" if simulated else "located",
-            "not_found": not_found}
+            "not_found": not_found, "unreadable": unreadable}
