@@ -79,7 +79,10 @@ class Dataset:
         """The image of configuration `config_id`: (H, W, 3) uint8 RGB array."""
         import cv2
 
+        from vistac.dataset.files import check_file
+
         path = self.image_path(config_id)
+        check_file(path)
         bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
         if bgr is None:
             raise UserError(f"{path}: cannot read the image")

@@ -10,6 +10,7 @@ import errno
 import json
 import os
 import platform
+import stat
 from collections.abc import Iterable
 from importlib import import_module
 from pathlib import Path
@@ -125,6 +126,43 @@ def _alive(pid: int) -> bool:
     except PermissionError:  # someone else's process
         return True
     return True
+
+
+_NOT_FILES = ((stat.S_ISFIFO, "a named pipe (FIFO)"), (stat.S_ISDIR, "a folder"),
+              (stat.S_ISCHR, "a device"), (stat.S_ISBLK, "a device"),
+              (stat.S_ISSOCK, "a socket"))
+
+
+def not_a_file(path: str | Path) -> str | None:
+    """What `path` is when it exists but is not a regular file (symbolic links followed), e.g.
+    ``"a named pipe (FIFO)"``; None for a regular file, or for nothing there (the reader then
+    says "missing" in its own words).
+
+    Reading a named pipe or a device waits for a writer that may never come; every reader of
+    data (images, tables, JSON, checkpoints, scene, space and texture files) asks first.
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:  # missing, a loop of links, no permission: the read says so
+        return None
+    return next((what for test, what in _NOT_FILES if test(mode)),
+                None if stat.S_ISREG(mode) else "not a regular file")
+
+
+def check_file(path: str | Path, option: str = "") -> None:
+    """Refuse `path` if it exists and is not a regular file (`not_a_file`).
+
+    Args:
+        path: The file about to be read.
+        option: The option that named it, for the message (e.g. ``"--space"``).
+
+    Raises:
+        UserError: one line naming the file and what it is.
+    """
+    what = not_a_file(path)
+    if what is not None:
+        where = f"{option} {path}" if option else str(path)
+        raise UserError(f"{where}: is {what}, not a regular file; give a file")
 
 
 def check_out_dir(path: str | Path, option: str = "--out") -> Path:

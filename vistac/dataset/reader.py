@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from vistac.dataset.files import check_file
 from vistac.dataset.schema import (
     CONFIGS,
     FINGER_RGB,
@@ -145,6 +146,7 @@ class DatasetTables:
 
 
 def _read_bytes(path: Path) -> bytes:
+    check_file(path)
     try:
         return path.read_bytes()
     except OSError as exc:

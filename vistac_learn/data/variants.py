@@ -31,6 +31,7 @@ import numpy as np
 
 from vistac.config import Config, param
 from vistac.dataset import FINGERS
+from vistac.dataset.files import check_file
 from vistac.dataset.schema import TABLE_RGB
 from vistac.errors import UserError
 
@@ -235,7 +236,9 @@ def render_variant(
 
 
 def read_rgb(path: Path) -> np.ndarray:
-    """Read an image file as (H, W, 3) uint8 RGB; UserError if unreadable."""
+    """Read an image file as (H, W, 3) uint8 RGB; UserError if unreadable (or not a regular
+    file: a named pipe would block the read)."""
+    check_file(path)
     bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if bgr is None:
         raise UserError(f"{path}: missing or not a readable image")

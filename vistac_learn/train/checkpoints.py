@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from vistac.dataset.files import atomic_write_bytes
+from vistac.dataset.files import atomic_write_bytes, check_file
 from vistac.errors import UserError
 from vistac_learn.train.run_files import read_run_config
 
@@ -148,6 +148,7 @@ def load_checkpoint(path: Path, keys: Sequence[str], fix: str, map_location="cpu
         UserError: the file is missing, truncated, not a checkpoint, lacks an entry or
             carries pickled objects other than tensors and plain data.
     """
+    check_file(path)
     try:
         ck = torch.load(path, map_location=map_location, weights_only=True)
     except FileNotFoundError:

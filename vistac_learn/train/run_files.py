@@ -14,7 +14,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from vistac.dataset.files import atomic_write_bytes, atomic_write_json
+from vistac.dataset.files import atomic_write_bytes, atomic_write_json, check_file
 from vistac.errors import UserError
 
 if TYPE_CHECKING:
@@ -35,6 +35,7 @@ def read_run_config(run: Path, fix: str) -> dict:
         UserError: missing, unreadable, not JSON, or without the parts a run writes.
     """
     path = Path(run) / CONFIG
+    check_file(path)
     try:
         meta = json.loads(path.read_bytes())
     except FileNotFoundError:

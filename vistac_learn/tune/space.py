@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from vistac.config import Config, ConfigError, param, to_dict, type_hints
+from vistac.dataset.files import check_file
 from vistac.errors import UserError
 from vistac.safe_yaml import load_yaml
 from vistac_learn.train.config import TrainCfg
@@ -132,6 +133,7 @@ def load_space(path: str | Path | None, base: SpaceCfg = DEFAULT_SPACE) -> Space
     if path is None:
         return base
     path = Path(path)
+    check_file(path, "--space")
     try:
         text = path.read_text()
         data = json.loads(text) if path.suffix == ".json" \

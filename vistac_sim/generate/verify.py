@@ -16,7 +16,7 @@ from typing import Any
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from vistac.dataset.files import bad_label
+from vistac.dataset.files import bad_label, not_a_file
 from vistac.dataset.recordings import recording_name
 from vistac.dataset.schema import CONFIGS, IMAGES, LABEL_COLUMNS, MANIFEST, MASKS, PRESSES
 from vistac.errors import UserError
@@ -26,7 +26,10 @@ PNG_TAIL = b"\x00\x00\x00\x00IEND\xaeB`\x82"
 
 
 def damaged_png(path: Path) -> str | None:
-    """Why the PNG at `path` cannot be read back (missing, empty, torn), or None if whole."""
+    """Why the PNG at `path` cannot be read back (missing, empty, torn, not a file), or None
+    if whole."""
+    if not_a_file(path):
+        return f"{not_a_file(path)}, not a file"
     try:
         with open(path, "rb") as fh:
             head = fh.read(len(PNG_HEAD))
@@ -48,6 +51,8 @@ def damaged_png(path: Path) -> str | None:
 
 def damaged_recording(path: Path) -> str | None:
     """Why the recording CSV at `path` cannot be read back, or None if whole."""
+    if not_a_file(path):
+        return f"{not_a_file(path)}, not a file"
     try:
         with open(path, "rb") as fh:
             size = fh.seek(0, 2)
