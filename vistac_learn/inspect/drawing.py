@@ -44,9 +44,9 @@ def draw_finger(img: np.ndarray, tip: np.ndarray, mean: np.ndarray | None,
     for d in presses:  # longer than the arrow: the cone fans out beyond its head
         line(img, tip, d, 1.4 * length, PRESS_RGB, 1)
     if mean is not None:
-        line(img, tip, mean, length, MEAN_RGB, width + 1, head=True)
-    if pred is not None:
-        line(img, tip, pred, length, PRED_RGB, width + 1, head=True)
+        line(img, tip, mean, length, MEAN_RGB, width + (2 if pred is not None else 1), head=True)
+    if pred is not None:  # thinner, on top: the label's black shows around a close prediction
+        line(img, tip, pred, length, PRED_RGB, width, head=True)
     cv2.circle(img, _pt(tip), 2 << SHIFT, MEAN_RGB, -1, cv2.LINE_AA, SHIFT)
 
 
