@@ -149,3 +149,12 @@ def test_run_report_shows_the_worst_configurations_first(tmp_path):
     (ev / "metrics.json").unlink()
     with pytest.raises(UserError, match="vistac evaluate --run"):
         inspect_path(run, InspectCfg(out=str(tmp_path / "r2")))
+
+
+def test_unfinished_dataset_gets_no_card(tmp_path):
+    root = make_dataset(tmp_path / "d", n=4, repeats=2, size=48, complete=False)
+    rep = inspect_dataset(root, InspectCfg(out=str(tmp_path / "r")))
+    assert rep.card is None and not (root / "README.md").exists()
+    assert any(line.startswith("note: not a complete, valid dataset:") and "not complete" in line
+               for line in rep.lines)
+    assert any(line.startswith("configurations: 4") for line in rep.lines)

@@ -74,7 +74,7 @@ def inspect_dataset(root: str | Path, cfg: InspectCfg | None = None) -> InspectR
     out.mkdir(parents=True, exist_ok=True)
     t = readable.tables
     rep = InspectReport(out, [])
-    if not (root / CARD).exists() and t.manifest and (root / MANIFEST).is_file():
+    if not (root / CARD).exists() and t.manifest.get("complete") is True:  # finished only
         rep.card = write_card(root, t.manifest)
     sheet: dict = {"rows": [], "not_found": {}}
     if len(t.configs) and "image" in t.configs:
