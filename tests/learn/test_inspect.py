@@ -158,3 +158,12 @@ def test_unfinished_dataset_gets_no_card(tmp_path):
     assert any(line.startswith("note: not a complete, valid dataset:") and "not complete" in line
                for line in rep.lines)
     assert any(line.startswith("configurations: 4") for line in rep.lines)
+
+
+def test_python_api_inspects_a_dataset(tmp_path):
+    import vistac
+
+    root = make_dataset(tmp_path / "d", n=4, repeats=2, size=48)
+    rep = vistac.open_dataset(root).inspect(tmp_path / "r", per_group=1)
+    assert rep.out == tmp_path / "r" and "report.md" in rep.files
+    assert "presses: 8 (2 per configuration)" in rep.lines

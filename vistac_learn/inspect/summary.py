@@ -85,7 +85,8 @@ def summary_lines(readable: Readable, sheet_not_found: dict[str, int] | None = N
         lines.append(f"objects: {len(top)} ({shown}{rest})")
     if "config_id" in p and len(c):
         per = p.groupby("config_id").size()
-        lines.append(f"presses: {len(p)} ({per.min()}-{per.max()} per configuration)")
+        each = f"{per.min()}" if per.min() == per.max() else f"{per.min()}-{per.max()}"
+        lines.append(f"presses: {len(p)} ({each} per configuration)")
     else:
         lines.append(f"presses: {len(p)}")
     cfg = man.get("config") or {}
