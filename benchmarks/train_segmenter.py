@@ -22,27 +22,24 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import cv2
+import numpy as np
+import torch
+from learnbench import ensure_dataset
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-from learnbench import ensure_dataset  # noqa: E402
-
-from vistac.dataset import FINGERS, open_dataset  # noqa: E402
-from vistac.dataset.splits import SplitCfg  # noqa: E402
-from vistac_learn.data.perturb import (  # noqa: E402
+from vistac.dataset import FINGERS, open_dataset
+from vistac.dataset.splits import SplitCfg
+from vistac_learn.data.perturb import (
     AXES,
     Scene,
     perturb_axes,
     random_axes,
     segment,
 )
-from vistac_learn.data.segmenter import (  # noqa: E402
+from vistac_learn.data.segmenter import (
     CLASSES,
     DEFAULT_WIDTHS,
     WEIGHTS,
@@ -50,9 +47,9 @@ from vistac_learn.data.segmenter import (  # noqa: E402
     save_weights,
     segment_image,
 )
-from vistac_learn.data.variants import read_rgb  # noqa: E402
-from vistac_sim.generate.config import GenerateCfg  # noqa: E402
-from vistac_sim.render.config import RenderCfg  # noqa: E402
+from vistac_learn.data.variants import read_rgb
+from vistac_sim.generate.config import GenerateCfg
+from vistac_sim.render.config import RenderCfg
 
 CLEAN_SEED, PHOTO_SEEDS = 101, (102, 103, 104)
 
