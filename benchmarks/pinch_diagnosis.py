@@ -21,25 +21,28 @@ import numpy as np
 import torch
 
 from vistac.dataset import FINGERS, open_dataset
-from vistac_learn.data.fingertip_table import fingertip_table
+from vistac_learn.data.fingertip_table import FingertipTable, fingertip_table
 from vistac_learn.data.loading import loader
 from vistac_learn.evaluate.run import RETRAIN
 from vistac_learn.metrics.scoring import score
 from vistac_learn.models.pinch import compose_labels
+from vistac_learn.train.build import build_model, build_samples, input_size
 from vistac_learn.train.checkpoints import load_checkpoint, load_weights
-from vistac_learn.train.config import TrainCfg, build_model, build_samples, input_size
+from vistac_learn.train.config import TrainCfg
 
 
-def diagnose(run: Path, split: str = "val") -> dict:
-    """Median angle to the cone mean per variant and finger, and the parts' median errors."""
+def diagnose(run: Path, split: str = "val", tips: FingertipTable | None = None) -> dict:
+    """Median angle to the cone mean per variant and finger, and the parts' median errors;
+    the crops around `tips` (default: the located fingertips)."""
     cfg = TrainCfg(**json.loads((run / "config.json").read_text())["train"])
     t = open_dataset(cfg.data)
     model = build_model(cfg)
     path = run / "checkpoints" / "best.pt"
     load_weights(model, load_checkpoint(path, ("model",), RETRAIN)["model"], path, RETRAIN)
     model.eval()
-    ds = build_samples(cfg, t, split, input_size(cfg, model),
-                       fingertip_table(t, cache_dir=cfg.cache_dir))
+    if tips is None:
+        tips = fingertip_table(t, cache_dir=cfg.cache_dir)
+    ds = build_samples(cfg, t, split, input_size(cfg, model), tips)
     preds: dict[str, list[np.ndarray]] = {}
     errs = []
     with torch.no_grad():

@@ -1,6 +1,7 @@
 """A dataset's located fingertips, cached (`fingertip_table`, `FingertipTable`), those of some
 given images (`located_in`), and the simulator's own tips in image coordinates
-(`simulator_tips`) to compare them with. The locating itself is `vistac_learn.data.fingertips`.
+(`simulator_tips`; as a table, with the drawn radius: `simulator_fingertips`) to compare them
+with. The locating itself is `vistac_learn.data.fingertips`.
 """
 
 from __future__ import annotations
@@ -44,6 +45,21 @@ def simulator_tips(tables: DatasetTables, row: int, size: int
         row: Configuration row.
         size: Side of the (square) image in pixels.
     """
+    return {f: (t.tip, t.axis) for f, t in _drawn_tips(tables, row, size).items()}
+
+
+def simulator_fingertips(tables: DatasetTables, size: int) -> FingertipTable:
+    """A fingertip table of the simulator's fingertips as every image draws them
+    (`simulator_tips`), with the drawn fingertip's radius: what a perfect locator would find."""
+    cids = tables.configs["config_id"].to_numpy()
+    return FingertipTable(pd.DataFrame([record(int(cids[r]), _drawn_tips(tables, r, size))
+                                        for r in range(len(tables.configs))]))
+
+
+def _drawn_tips(tables: DatasetTables, row: int, size: int) -> dict[str, Fingertip]:
+    """`simulator_tips` with the radius in pixels of the fingertip as drawn: the pad's radius
+    at its place in the image, times the drawn width (``drawn_<finger>_width``), plus half the
+    drawn outline (``drawn_outline_px``)."""
     c = tables.configs.iloc[row]
     proj = Projection.from_columns(c, size)
     hand = tables.hand
@@ -56,8 +72,17 @@ def simulator_tips(tables: DatasetTables, row: int, size: int
             site = tip + hand.get("tip_radius", 0.0) * step / np.linalg.norm(step)
             tip, step = displace(tip, site, overlay), rotz(overlay[2]) @ step
         axis = proj.direction(tip, step)
-        out[f] = (proj.project(tip) - PIXEL_CENTRE, axis / np.linalg.norm(axis))
+        radius = (hand.get("tip_radius", np.nan) * float(proj.px_per_m_at(tip))
+                  * _column(c, f"drawn_{f}_width", 1.0) + _column(c, "drawn_outline_px", 0.0) / 2)
+        out[f] = Fingertip(proj.project(tip) - PIXEL_CENTRE, axis / np.linalg.norm(axis),
+                           float(radius))
     return out
+
+
+def _column(row: pd.Series, key: str, default: float) -> float:
+    """A configuration's value of an optional column (absent or NaN: `default`)."""
+    v = row.get(key)
+    return float(v) if v is not None and np.isfinite(float(v)) else default
 
 
 class FingertipTable:
