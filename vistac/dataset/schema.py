@@ -38,7 +38,7 @@ TABLE_RGB = (0.81, 0.81, 0.81)
 FINGER_RGB = {"index": (0.0, 0.85, 0.0), "thumb": (0.9, 0.0, 0.0)}
 
 # Where a pixel's centre lies in the continuous image coordinates of the simulator's
-# projections (`vistac_sim.render.shot.Shot.project`, the finger boxes): pixel (u, v) covers
+# projections (`vistac.projection.Projection.project`, the finger boxes): pixel (u, v) covers
 # [u, u + 1) x [v, v + 1). OpenCV, array indices and the fingertip locator put the centre at the
 # integer itself; subtract PIXEL_CENTRE to go from the first to the second.
 PIXEL_CENTRE = 0.5
