@@ -31,7 +31,8 @@ from vistac_sim.physics.checks import RejectedSample
 # Every rejection reason of grasp sampling, the press and the physical checks.
 KNOWN_REASONS = {"unreachable", "no_opposing_thumb", "fingers_overlap", "start_penetrates",
                  "mujoco_warning", "non_finite", "no_contact", "shaft_contact", "not_settled",
-                 "penetration", "pulling_force", "outside_friction_cone"}
+                 "penetration", "pulling_force", "outside_friction_cone", "collision_shape_off",
+                 "finger_outside_view"}
 
 
 def thin_wall_u(L: float, wall: float) -> Polygon:

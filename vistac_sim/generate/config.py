@@ -71,8 +71,10 @@ class GenerateCfg(Config):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        room = self.render.view_extent - 4 * self.hand.tip_radius  # both fingertips in view
-        if not self.objects.paths and self.objects.footprint[1] > room:
+        # both fingertips in view, for procedural objects and meshes alike (a mesh is scaled to
+        # the footprint); a configuration whose fingertip still leaves the view is redrawn
+        room = self.render.view_extent - 4 * self.hand.tip_radius
+        if self.objects.footprint[1] > room:
             raise ConfigError("objects.footprint", (
                 f"MAX {self.objects.footprint[1]:g} m does not fit the view: with both "
                 f"fingertips it must be <= {room:.4g} m (view_extent {self.render.view_extent:g}"

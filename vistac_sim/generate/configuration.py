@@ -23,7 +23,7 @@ from vistac.dataset.schema import (
 )
 from vistac_sim.effects.registry import Pipeline
 from vistac_sim.generate.config import GenerateCfg
-from vistac_sim.generate.rigs import NoValidGrasp, ObjectRig, RigCache, draw_grasp
+from vistac_sim.generate.rigs import NoValidGrasp, ObjectRig, RigCache, draw_grasp, solve
 from vistac_sim.hand.grasp import Grasp
 from vistac_sim.objects.library import BuiltObject
 from vistac_sim.objects.specs import object_index
@@ -152,13 +152,15 @@ def _solve_repeat(scene: ObjectRig, pipeline: Pipeline, grasp: Grasp,
                   rng: np.random.Generator) -> np.ndarray | None:
     """(2, 3) sensor-frame force of one repeat under the grasp effects.
 
-    A perturbed grasp that the press rejects is drawn again, up to `GRASP_EFFECT_TRIES` times;
+    Every repeat's solve passes the checks of the first one (`solve`: the press, the collision
+    shape, the friction cone around the mesh normal). A perturbed grasp that is rejected is drawn
+    again, up to `GRASP_EFFECT_TRIES` times;
     None if every try was rejected (the caller keeps the unperturbed force and counts it in the
     `grasp_effect_fallbacks` column).
     """
     for _ in range(GRASP_EFFECT_TRIES):
         try:
-            return scene.press.run(pipeline.apply_grasp(grasp, rng)).force_sensor
+            return solve(scene, pipeline.apply_grasp(grasp, rng), scene.cfg)[0].force_sensor
         except RejectedSample:
             continue
     return None

@@ -12,26 +12,45 @@ from dataclasses import replace
 
 import numpy as np
 
+from vistac.dataset import FINGERS
 from vistac_sim.effects.shadows import shadow_map_size
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.grasps import OutlineSampler
 from vistac_sim.hand.grasp import Grasp
 from vistac_sim.hand.model import compile_model
 from vistac_sim.objects.library import BuiltObject, ObjectSpec, build_object
-from vistac_sim.physics.checks import RejectedSample, check_physics
+from vistac_sim.physics.checks import RejectedSample, check_collision_shape, check_physics
 from vistac_sim.physics.normals import TriangleIndex, surface_normals
 from vistac_sim.physics.press import Press, PressResult
-from vistac_sim.render.topview import TopView
+from vistac_sim.render.topview import TopView, finger_capsules
 
 
 class NoValidGrasp(RuntimeError):
-    """`max_redraws` draws in a row on one object were rejected; `redraws` counts the reasons."""
+    """`max_redraws` draws in a row on one object were rejected; `redraws` counts the reasons,
+    `details` names what each reason last said (e.g. which MuJoCo warning)."""
 
-    def __init__(self, object_id: str, redraws: Counter):
-        super().__init__(f"object {object_id} gave no valid grasp in {sum(redraws.values())} "
-                         f"draws ({dict(redraws)})")
+    def __init__(self, object_id: str, redraws: Counter, details: dict[str, str] | None = None):
         self.object_id = object_id
         self.redraws = redraws
+        self.details = details or {}
+        super().__init__(f"object {object_id} gave {self.summary()}")
+
+    def summary(self) -> str:
+        """"no valid grasp in 60 draws: 60 x mujoco_warning (mjWARN_BADQACC)", reasons by count."""
+        return no_valid_grasp_text(self.redraws, self.details)
+
+
+def no_valid_grasp_text(redraws: Counter | dict[str, int],
+                        details: dict[str, str] | None = None) -> str:
+    """The failed draws of an object in words, the commonest reason first."""
+    details = details or {}
+    parts = [f"{n} x {r}" + (f" ({details[r]})" if r in DETAILED and r in details else "")
+             for r, n in sorted(redraws.items(), key=lambda kv: (-kv[1], kv[0]))]
+    return f"no valid grasp in {sum(redraws.values())} draws: " + ", ".join(parts)
+
+
+DETAILED = {"mujoco_warning", "non_finite"}
+"""Reasons whose detail (which warning) is worth naming in the final error."""
 
 
 class ObjectRig:
@@ -68,7 +87,8 @@ class RigCache:
             self._rigs.move_to_end(index)
             return self._rigs[index]
         obj = build_object(self.specs[index], self.cfg.hand.height, self.cfg.objects.min_wall,
-                           self.cache_dir, self.cfg.objects.min_height)
+                           self.cache_dir, self.cfg.objects.min_height,
+                           self.cfg.objects.shape_tolerance)
         rig = ObjectRig(obj, self.cfg)
         self._rigs[index] = rig
         if len(self._rigs) > self.size:
@@ -92,9 +112,27 @@ def solve(rig: ObjectRig, grasp: Grasp, cfg: GenerateCfg) -> tuple[PressResult, 
     """
     res = rig.press.run(grasp)
     world = surface_normals(rig.triangles, grasp, res, 2 * cfg.hand.tip_half_length)
+    check_collision_shape(res.contact_normals, [c[:, 3] for c in res.pad_contacts], world,
+                          cfg.physics.shape_tolerance_deg)
     normal = np.einsum("kji,kj->ki", res.rotation, world)
     check_physics(res.force_sensor, normal, cfg.physics.friction, cfg.physics.cone_tolerance_deg)
     return res, normal
+
+
+def check_in_view(rig: ObjectRig, cfg: GenerateCfg) -> None:
+    """Both fingertips (each pad capsule, widened by its radius) must lie inside the clean top
+    view, so that every kept image shows both fingers.
+
+    Raises:
+        RejectedSample: "finger_outside_view", naming the finger.
+    """
+    half = cfg.render.view_extent / 2
+    for name, finger in zip(FINGERS, finger_capsules(rig.model, rig.press.data, rig.ids),
+                            strict=True):
+        a, b, r = finger[0]  # the pad
+        if max(abs(a[0]), abs(a[1]), abs(b[0]), abs(b[1])) + r > half:
+            raise RejectedSample("finger_outside_view", f"{name} fingertip leaves the "
+                                 f"{cfg.render.view_extent * 1000:g} mm view")
 
 
 def draw_grasp(rig: ObjectRig, rng: np.random.Generator,
@@ -108,10 +146,14 @@ def draw_grasp(rig: ObjectRig, rng: np.random.Generator,
         NoValidGrasp: when `max_redraws` draws in a row were rejected (names the object).
     """
     redraws: Counter = Counter()
+    details: dict[str, str] = {}
     for _ in range(cfg.grasp.max_redraws):
         try:
             grasp = rig.sampler.sample(rng)
-            return (grasp, *solve(rig, grasp, cfg), redraws)
+            res, normal = solve(rig, grasp, cfg)
+            check_in_view(rig, cfg)
+            return grasp, res, normal, redraws
         except RejectedSample as exc:
             redraws[exc.reason] += 1
-    raise NoValidGrasp(rig.obj.object_id, redraws)
+            details[exc.reason] = exc.detail
+    raise NoValidGrasp(rig.obj.object_id, redraws, details)

@@ -30,7 +30,7 @@ def screen_object(job: tuple[int, ObjectSpec, GenerateCfg]
     rng = np.random.default_rng([cfg.seed, k, 0x5C4EE7])
     try:
         obj = build_object(spec, cfg.hand.height, cfg.objects.min_wall, default_cache_dir(),
-                           cfg.objects.min_height)
+                           cfg.objects.min_height, cfg.objects.shape_tolerance)
         scene = ObjectRig(obj, cfg, render=False)
     except UserError as exc:
         return str(exc), {}, []
@@ -41,7 +41,7 @@ def screen_object(job: tuple[int, ObjectSpec, GenerateCfg]
         draw_grasp(scene, rng, cfg)
     except NoValidGrasp as exc:
         counts = dict(sorted(exc.redraws.items()))
-        return f"no valid grasp in {sum(counts.values())} draws", counts, notes
+        return exc.summary(), counts, notes
     finally:
         scene.close()
     return None, {}, notes

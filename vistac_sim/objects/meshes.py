@@ -2,11 +2,14 @@
 section at a height.
 
 What is truly broken (unreadable, no triangles, NaN or infinite vertices, flat, a triangle soup
-that is no surface) is refused with the file named. Everything else is repaired: duplicate
-vertices merged (at 1e-6 of the mesh's size), degenerate and repeated faces dropped, holes closed
+that is no surface) is refused with the file named. Everything else is repaired: vertices
+closer than 1e-6 of the mesh's size welded (by distance), sliver faces merged into their
+neighbours (T-junctions closed), degenerate and repeated faces dropped, holes closed
 with a fan of triangles, winding made consistent and the normals turned outwards. A mesh that
 stays open after that is still used: it is collided through its convex decomposition (which needs
 no closed surface) and its faces, oriented outwards as well as they can be, give the normals.
+Every repair runs on the mesh scaled to a
+unit size, so a file in metres and the same file in millimetres are repaired alike.
 `mesh.metadata["repairs"]` lists what was done.
 """
 
@@ -66,25 +69,54 @@ def load_mesh(path: str | os.PathLike) -> trimesh.Trimesh:
     return repair_mesh(loaded.vertices, loaded.faces, str(path))
 
 
+WELD_TOL = 1e-6
+"""Vertices closer than this (a fraction of the mesh's longest side) are one vertex."""
+SLIVER_TOL = 1e-5
+"""A face narrower than this (its height over its longest edge, a fraction of the mesh's longest
+side) is a sliver: a T-junction's filler or a collapsed needle."""
+
+
 def repair_mesh(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh") -> trimesh.Trimesh:
     """A checked, repaired mesh from raw arrays (see the module's docstring).
+
+    Every repair runs on the mesh scaled to a unit longest side (and is scaled back after), so
+    its outcome does not depend on the file's units.
 
     Raises:
         UserError: "zero volume" (flat or degenerate) or "not a surface" (triangle soup).
     """
-    mesh = trimesh.Trimesh(np.asarray(vertices, float), np.asarray(faces), process=False)
+    vertices = np.asarray(vertices, float)
+    faces = np.asarray(faces, np.int64).reshape(-1, 3)
+    lo = vertices.min(axis=0) if len(vertices) else np.zeros(3)
+    size = float((vertices.max(axis=0) - lo).max()) if len(vertices) else 0.0
+    if size <= 0:
+        raise UserError(f"{name}: zero volume (the mesh is flat or degenerate)")
+    mesh, notes = _repair_unit(vertices - lo, faces, size, name)
+    mesh.apply_scale(size)
+    mesh.apply_translation(lo)
+    mesh.metadata["repairs"] = notes
+    return mesh
+
+
+def _repair_unit(vertices: np.ndarray, faces: np.ndarray, size: float,
+                 name: str) -> tuple[trimesh.Trimesh, list[str]]:
+    """`repair_mesh` on vertices shifted to the origin, scaled here to a unit longest side."""
     notes: list[str] = []
-    size = float(mesh.extents.max()) if len(mesh.vertices) else 0.0
-    n_vert = len(mesh.vertices)
-    if size > 0:
-        mesh.merge_vertices(merge_tex=True, merge_norm=True,
-                            digits_vertex=int(np.floor(-np.log10(1e-6 * size))))
+    unit_v = vertices / size
+    welded, faces = weld_vertices(unit_v, faces, WELD_TOL)
+    if len(welded) < len(unit_v):
+        notes.append(f"welded {len(unit_v) - len(welded)} vertices closer than {WELD_TOL:g} of "
+                     "the size")
+    faces, merged, dropped = merge_slivers(welded, faces, SLIVER_TOL)
+    if merged:
+        notes.append(f"merged {merged} sliver faces into their neighbours")
+    if dropped:
+        notes.append(f"dropped {dropped} sliver faces with no neighbour to merge into")
+    mesh = trimesh.Trimesh(welded, faces, process=False)
     n_face = len(mesh.faces)
     mesh.update_faces(mesh.nondegenerate_faces())
     mesh.update_faces(mesh.unique_faces())
     mesh.remove_unreferenced_vertices()
-    if len(mesh.vertices) < n_vert:
-        notes.append(f"merged {n_vert - len(mesh.vertices)} duplicate vertices")
     if len(mesh.faces) < n_face:
         notes.append(f"dropped {n_face - len(mesh.faces)} degenerate or repeated faces")
     ext = mesh.extents if len(mesh.faces) else np.zeros(3)
@@ -111,8 +143,85 @@ def repair_mesh(vertices: np.ndarray, faces: np.ndarray, name: str = "mesh") -> 
         notes.append("open surface: collided through its convex decomposition")
     if not np.array_equal(before, mesh.faces):
         notes.append("fixed winding / normals")
-    mesh.metadata["repairs"] = notes
-    return mesh
+    return mesh, notes
+
+
+def weld_vertices(vertices: np.ndarray, faces: np.ndarray,
+                  tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Vertices closer than `tol` (chains included) made one (the first of each group); faces
+    renumbered. By distance, not by rounding to a grid: two vertices 1e-9 apart on either side
+    of a grid line are welded too."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    n = len(vertices)
+    pairs = cKDTree(vertices).query_pairs(tol, output_type="ndarray")
+    if len(pairs) == 0:
+        used = np.unique(faces)
+        if len(used) == n:
+            return vertices, faces
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, label = connected_components(graph, directed=False)
+    # the first vertex of each group stands for it; unreferenced vertices are left out
+    first = np.full(label.max() + 1, n)
+    np.minimum.at(first, label, np.arange(n))
+    keep = np.unique(first[label[faces.ravel()]])
+    new_index = np.full(n, -1)
+    new_index[keep] = np.arange(len(keep))
+    return vertices[keep], new_index[first[label]][faces]
+
+
+def merge_slivers(vertices: np.ndarray, faces: np.ndarray,
+                  tol: float) -> tuple[np.ndarray, int, int]:
+    """Faces narrower than `tol` merged away: a sliver (a, b, m) whose apex m lies on its longest
+    edge ab (a T-junction's filler) is removed and the face across ab is split at m, so the
+    surface stays closed; one whose neighbour is missing (or a sliver too) is dropped.
+    Faces with a repeated vertex (welded needles) are dropped by the caller.
+
+    Returns:
+        The new faces, how many slivers were merged, how many dropped.
+    """
+    tri = vertices[faces]
+    edges = np.roll(tri, -1, axis=1) - tri  # edge k runs from corner k to corner k + 1
+    length = np.linalg.norm(edges, axis=2)
+    area2 = np.linalg.norm(np.cross(edges[:, 0], -edges[:, 2]), axis=1)
+    longest = length.argmax(axis=1)
+    height = area2 / np.maximum(length.max(axis=1), 1e-300)
+    distinct = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (
+        faces[:, 2] != faces[:, 0])
+    slivers = np.flatnonzero((height < tol) & distinct)
+    if len(slivers) == 0:
+        return faces, 0, 0
+    out = [list(f) for f in faces.tolist()]
+    alive = np.ones(len(out), bool)
+    by_edge: dict[tuple[int, int], int] = {}
+    for i, f in enumerate(out):
+        for k in range(3):
+            by_edge[(f[k], f[(k + 1) % 3])] = i
+    is_sliver = np.zeros(len(out), bool)
+    is_sliver[slivers] = True
+    merged = dropped = 0
+    for s in slivers.tolist():
+        k = int(longest[s])
+        a, b, m = out[s][k], out[s][(k + 1) % 3], out[s][(k + 2) % 3]
+        alive[s] = False
+        n = by_edge.get((b, a))
+        if n is None or not alive[n] or is_sliver[n]:
+            dropped += 1
+            continue
+        f = out[n]
+        j = f.index(b)
+        d = f[(j + 2) % 3]  # f is (b, a, d) turned
+        out[n] = [b, m, d]
+        out.append([m, a, d])
+        alive = np.append(alive, True)
+        is_sliver = np.append(is_sliver, False)
+        for face_id, g in ((n, out[n]), (len(out) - 1, out[-1])):
+            for q in range(3):
+                by_edge[(g[q], g[(q + 1) % 3])] = face_id
+        merged += 1
+    return np.asarray(out, np.int64)[alive], merged, dropped
 
 
 def _fill_holes(mesh: trimesh.Trimesh) -> trimesh.Trimesh | None:

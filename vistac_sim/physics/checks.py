@@ -37,3 +37,23 @@ def check_physics(force: np.ndarray, normal: np.ndarray, friction: float, tol_de
         ang = angle_deg(force, normal)
         raise RejectedSample("outside_friction_cone",
                              f"force {ang.max():.1f} deg off the normal (limit {limit:.1f})")
+
+
+def check_collision_shape(contact_normals, weights, mesh_normals: np.ndarray,
+                          tol_deg: float) -> None:
+    """The collision geometry MuJoCo pressed must face where the labelled mesh faces: per pad,
+    the normal-force-weighted mean of its contact normals (world, out of the object) within
+    `tol_deg` of the full-resolution mesh normal there (`mesh_normals`, (2, 3) world). Without
+    friction the label follows the collision normal, so this bounds a frictionless label's
+    error against the true surface normal; with friction it bounds the cone's axis.
+
+    Raises:
+        RejectedSample: "collision_shape_off", naming the angle.
+    """
+    for normals, w, mesh_n in zip(contact_normals, weights, mesh_normals, strict=True):
+        mean = (normals * np.maximum(w, 1e-12)[:, None]).sum(0)
+        length = float(np.sqrt(mean @ mean) * np.sqrt(mesh_n @ mesh_n))
+        if length == 0 or float(mean @ mesh_n) < np.cos(np.radians(tol_deg)) * length:
+            ang = float(angle_deg(mean[None], mesh_n[None])[0]) if length else 180.0
+            raise RejectedSample("collision_shape_off", f"the collision normal is {ang:.2f} deg "
+                                 f"off the mesh normal (limit {tol_deg:g})")

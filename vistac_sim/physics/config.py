@@ -36,6 +36,10 @@ class PhysicsCfg(Config):
     cone_tolerance_deg: float = param(3.0, ge=0, le=90,
                                       help='slack of the check "force within the friction '
                                       'cone"')
+    shape_tolerance_deg: float = param(0.5, gt=0, le=90,
+                                       help="max degrees between the collision geometry's "
+                                       "contact normal and the labelled mesh's normal at a pad "
+                                       "(bounds a frictionless label's error)")
 
     def __post_init__(self) -> None:
         super().__post_init__()

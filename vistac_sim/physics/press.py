@@ -51,6 +51,8 @@ class PressResult:
     tip: np.ndarray  # (2, 3) front-cap centre of each tip, world
     penetration: np.ndarray  # (2,) deepest penetration, m
     pad_contacts: tuple[np.ndarray, ...]  # per finger: (m, 4) contact xyz (world), normal force
+    contact_normals: tuple[np.ndarray, ...] = ()  # per finger: (m, 3) collision normals (world),
+    # out of the object's collision geometry towards the pad
 
 
 class Press:
@@ -131,7 +133,7 @@ class Press:
         force_w, force_c, tip = (np.zeros((2, 3)) for _ in range(3))
         rot = np.zeros((2, 3, 3))
         pen = np.zeros(2)
-        pad_contacts = []
+        pad_contacts, contact_normals = [], []
         for k, f in enumerate(FINGERS):
             pad_id, shaft_id = ids.pad[f], ids.shaft[f]
             if shaft_id in g1 or shaft_id in g2:
@@ -147,6 +149,10 @@ class Press:
                 raise RejectedSample("penetration", f"{f} pad {pen[k] * 1e3:.2f} mm deep")
             rows = np.zeros((len(pad), 4))  # contact xyz, normal force
             rows[:, :3] = pos[pad]
+            # the contact normal points from geom1 to geom2: out of the object when the pad is
+            # geom2
+            side = np.array([1.0 if g2[c] == pad_id else -1.0 for c in pad])
+            contact_normals.append(frame[pad, :3] * side[:, None])
             for j, c in enumerate(pad):
                 mujoco.mj_contactForce(m, d, c, self._f6)
                 # mj_contactForce gives the force of geom1 on geom2 in the contact frame.
@@ -161,9 +167,10 @@ class Press:
             force_c[k] = -rot[k].T @ d.sensordata[adr:adr + 3]
             tip[k] = d.xpos[m.geom_bodyid[pad_id]]
         force_sensor = np.einsum("kji,kj->ki", rot, force_w)
-        return PressResult(force_sensor, force_c, rot, tip, pen, tuple(pad_contacts))
+        return PressResult(force_sensor, force_c, rot, tip, pen, tuple(pad_contacts),
+                           tuple(contact_normals))
 
 
 def _warnings(d: mujoco.MjData) -> str:
-    return ", ".join(f"{mujoco.mjtWarning(i).name} x{w.number}"
+    return ", ".join(mujoco.mjtWarning(i).name.removeprefix("mjWARN_")
                      for i, w in enumerate(d.warning) if w.number)
