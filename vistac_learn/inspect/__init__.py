@@ -8,9 +8,9 @@
 - `distributions`: label angle, cone width and force magnitude by family and split, rejection
   reasons, the image effects' draws (figures);
 - `summary`: the summary lines;
-- `recordings`: the 50 Hz series pages with segments, chosen samples and rejection reasons;
 - `runs`: the worst configurations of a run's evaluation;
 - `report`: the report folders and their `report.md`; `config`: `InspectCfg`; `command`: the CLI.
 
-See docs/inspect.md.
+The recordings pages (50 Hz series, segments, chosen samples, rejection reasons) belong to
+ingest: `vistac.dataset.ingest.pages` (also `vistac ingest --report`). See docs/inspect.md.
 """

@@ -14,12 +14,12 @@ import numpy as np
 
 from vistac.dataset.card import write_card
 from vistac.dataset.files import atomic_write_bytes
+from vistac.dataset.ingest.pages import INTRO, index_lines, recording_pages
 from vistac.dataset.schema import CARD, MANIFEST
 from vistac.errors import UserError
 from vistac_learn.inspect import distributions
 from vistac_learn.inspect.config import InspectCfg
 from vistac_learn.inspect.readable import read_readable
-from vistac_learn.inspect.recordings import index_lines, recording_pages
 from vistac_learn.inspect.sheet import contact_sheet
 from vistac_learn.inspect.summary import redraw_reasons, rejected_grasps, summary_lines
 
@@ -121,10 +121,7 @@ def inspect_dataset(root: str | Path, cfg: InspectCfg | None = None) -> InspectR
     if effects:
         md += ["## Image effects' draws", "", "![effects](effects.png)", ""]
     if pages:
-        md += ["## Recordings", "", "Each recording's 50 Hz series (index and thumb F_y, F_z), "
-               "its grasp segments (green kept, red rejected, with the reason) and each kept "
-               "grasp's chosen sample (black line); recordings with rejected grasps first.", "",
-               *index_lines(pages, "recordings"), ""]
+        md += ["## Recordings", "", INTRO, "", *index_lines(pages, "recordings"), ""]
     atomic_write_bytes(out / REPORT, "\n".join(md).encode())
     rep.files = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
     rep.seconds = time.perf_counter() - t0

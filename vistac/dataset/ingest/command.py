@@ -33,6 +33,9 @@ class IngestCommandCfg(Config):
     """The options of `vistac ingest` besides the sources (`IngestSources`) and the knobs."""
 
     out: Path = param(help="dataset folder to create")
+    report: Path | None = param(None, help="also write a page per recording (its 50 Hz series, "
+                                "grasp segments, chosen samples, rejection reasons; rejected "
+                                "first) and their index report.md into this folder")
 
 
 def add_command(sub: argparse._SubParsersAction) -> None:
@@ -47,7 +50,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         formatter_class=HelpFormatter,
     )
     add_options(p, IngestSources, SOURCE_OPTIONS[:2])
-    add_options(p, IngestCommandCfg, ("out",))
+    add_options(p, IngestCommandCfg, ("out", "report"))
     add_options(p, IngestSources, SOURCE_OPTIONS[2:])
     add_options(p, IngestCfg, CFG_OPTIONS)
     c = ColumnMap()
@@ -70,8 +73,14 @@ def _run_ingest(args: argparse.Namespace) -> int:
         columns = ColumnMap(tuple(args.columns[:3]), tuple(args.columns[3:]))
     except ConfigError as exc:
         raise UserError(f"--columns: {exc.reason}") from None
-    out = from_options(IngestCommandCfg, args, ("out",)).out
+    command = from_options(IngestCommandCfg, args, ("out", "report"))
+    out = command.out
     check_out_dir(out)
+    if command.report is not None:
+        report = check_out_dir(command.report, "--report")
+        if report == out.absolute() or out.absolute() in report.parents:
+            raise UserError(f"--report {command.report}: inside the dataset --out {out}; the "
+                            "report goes outside it")
     cfg = from_options(IngestCfg, args, CFG_OPTIONS + CRITERIA_OPTIONS, columns=columns)
     split = from_options(SplitCfg, args, SPLIT_OPTIONS)
     src = from_options(IngestSources, args, (*SOURCE_OPTIONS, "objects_csv", "seed",
@@ -79,4 +88,14 @@ def _run_ingest(args: argparse.Namespace) -> int:
     manifest = ingest(src, out, cfg).manifest
     print(f"wrote {out}: " + json.dumps({"counts": manifest["counts"],
                                               "rejected": manifest["rejected"]["by_reason"]}))
+    if command.report is not None:
+        from vistac.dataset import open_dataset
+        from vistac.dataset.ingest.pages import write_recordings_report
+
+        pages, notes = write_recordings_report(open_dataset(out), command.report)
+        for note in notes:
+            print(f"note: {note}")
+        rejected = sum(1 for p in pages if p.rejected or p.error)
+        print(f"recordings: {len(pages)} ({rejected} with rejected grasps); pages and index in "
+              f"{command.report / 'report.md'}")
     return 0

@@ -1,13 +1,14 @@
 """Recordings as the study's operator saw them: each configuration's 50 Hz FTS-3 series (index
 and thumb F_y, F_z) with its grasp segments, the chosen sample of each kept grasp and, for a
 rejected grasp, the reason; one page (PNG) per recording and an index listing the recordings
-with rejected grasps first.
+with rejected grasps first (`vistac ingest --report DIR`, and `vistac inspect` of a dataset
+with recordings).
 
-The segments, samples and reasons are `vistac.dataset.ingest.preprocess` run on the series with
-the dataset's own ingest settings (from its manifest; deterministic, so they are the ones
-`vistac ingest` applied). An ingested dataset's recordings are read where it was ingested from
-(its manifest's ``sources.recordings``); a simulated dataset's (``--recordings``) from its
-``recordings/`` folder, segmented with the default ingest settings.
+The segments, samples and reasons are `preprocess` run on the series with the dataset's own
+ingest settings (from its manifest; deterministic, so they are the ones `vistac ingest`
+applied). An ingested dataset's recordings are read where it was ingested from (its manifest's
+``sources.recordings``); a simulated dataset's (``--recordings``) from its ``recordings/``
+folder, segmented with the default ingest settings. matplotlib is imported only to draw.
 """
 
 from __future__ import annotations
@@ -15,19 +16,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from vistac.config import apply  # noqa: E402
-from vistac.dataset.ingest.config import IngestCfg  # noqa: E402
-from vistac.dataset.ingest.preprocess import Grasp, preprocess  # noqa: E402
-from vistac.dataset.ingest.readers import read_recording  # noqa: E402
-from vistac.dataset.reader import DatasetTables  # noqa: E402
-from vistac.dataset.recordings import recording_name  # noqa: E402
-from vistac.errors import UserError  # noqa: E402
+from vistac.config import apply
+from vistac.dataset.files import atomic_write_bytes
+from vistac.dataset.ingest.config import IngestCfg
+from vistac.dataset.ingest.preprocess import Grasp, preprocess
+from vistac.dataset.ingest.readers import read_recording
+from vistac.dataset.reader import DatasetTables
+from vistac.dataset.recordings import recording_name
+from vistac.errors import UserError
 
 RATE_HZ = 50.0
 """The FTS-3 log's sample rate."""
@@ -90,6 +88,11 @@ def recording_sources(tables: DatasetTables) -> tuple[list[tuple[int, Path]], In
 def plot_page(forces: np.ndarray, page: RecordingPage, out: Path) -> None:
     """One recording's page: the four series, its segments shaded (kept green, rejected red,
     with the reason), each kept grasp's chosen sample marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     t = np.arange(len(forces)) / RATE_HZ
     fig, ax = plt.subplots(figsize=(9, 3.4))
     for fi, comp, label, colour, style in SERIES:
@@ -156,3 +159,20 @@ def index_lines(pages: list[RecordingPage], folder: str) -> list[str]:
         lines.append(f"| {p.config_id} | {p.source.name} | {len(p.grasps)} | "
                      f"{len(p.grasps) - len(p.rejected)} | {why} | {link} |")
     return lines
+
+
+INTRO = ("Each recording's 50 Hz series (index and thumb F_y, F_z), its grasp segments (green "
+         "kept, red rejected, with the reason) and each kept grasp's chosen sample (black line); "
+         "recordings with rejected grasps first.")
+
+
+def write_recordings_report(tables: DatasetTables, out: Path, max_pages: int = 100
+                            ) -> tuple[list[RecordingPage], list[str]]:
+    """`vistac ingest --report`: the pages under ``out/recordings/`` and ``out/report.md``
+    (their index); returns the pages and the notes (also in the report)."""
+    out.mkdir(parents=True, exist_ok=True)
+    pages, notes = recording_pages(tables, out / "recordings", max_pages)
+    md = [f"# Recordings of `{tables.root}`", "", *[f"- note: {n}" for n in notes], "", INTRO,
+          "", *index_lines(pages, "recordings"), ""]
+    atomic_write_bytes(out / "report.md", "\n".join(md).encode())
+    return pages, notes
