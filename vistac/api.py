@@ -162,7 +162,8 @@ def train(cfg: TrainCfg, data: str | Path, out: str | Path, *, resume: bool = Fa
         UserError: an incomplete dataset, an unusable `out`, `--init` not a finished run,
             a diverged training (`TrainingDiverged`).
     """
-    from vistac_learn.train.config import TrainCfg, check_paths
+    from vistac_learn.train.build import check_paths
+    from vistac_learn.train.config import TrainCfg
     from vistac_learn.train.job import JobCfg, run_job
 
     cfg = _config(cfg, TrainCfg, "cfg")
@@ -266,7 +267,8 @@ def tune(base: TrainCfg, data: str | Path, out: str | Path, *, trials: int = 20,
             CLI refuses such an option, Python callers set `space` instead.)
     """
     from vistac.engine import EngineCfg, preflight
-    from vistac_learn.train.config import TrainCfg, check_data, check_paths
+    from vistac_learn.train.build import check_data, check_paths
+    from vistac_learn.train.config import TrainCfg
     from vistac_learn.tune.driver import TuneCfg, check_folder, no_success, run_tune_held
     from vistac_learn.tune.engines import TRIAL_OPTIONS, TrialCfg, tune_runner
     from vistac_learn.tune.space import load_space
@@ -321,7 +323,8 @@ def sim2real(cfg: Sim2RealCfg, base: TrainCfg, *, max_cells: int | None = None,
     """
     from vistac.dataset.files import check_out_dir
     from vistac_learn.experiments import sim2real as S
-    from vistac_learn.train.config import TrainCfg, check_data
+    from vistac_learn.train.build import check_data
+    from vistac_learn.train.config import TrainCfg
 
     cfg, base = _config(cfg, S.Sim2RealCfg, "cfg"), _config(base, TrainCfg, "base")
     S.check_inputs(cfg)
@@ -350,7 +353,8 @@ def label_noise(cfg: LabelNoiseCfg, base: TrainCfg, *, max_cells: int | None = N
     """
     from vistac.dataset.files import check_out_dir
     from vistac_learn.experiments import label_noise as L
-    from vistac_learn.train.config import TrainCfg, check_data
+    from vistac_learn.train.build import check_data
+    from vistac_learn.train.config import TrainCfg
 
     cfg, base = _config(cfg, L.LabelNoiseCfg, "cfg"), _config(base, TrainCfg, "base")
     L.check_inputs(cfg)

@@ -7,7 +7,8 @@ is plain lines instead, as its loop's steps deserve:
 
 - ``lines="each"``: one line per step of a coarse loop (a generate chunk, a tuning trial, an
   experiment cell), e.g. ``generate: 40/200 cfg, 12 s``;
-- ``lines="end"``: one line when a fine-grained loop ends (images, objects, rows);
+- ``lines="end"``: one line when a fine-grained loop ends (objects checked), none for a bar
+  that clears itself on a terminal (``leave=False``: images located, rows scored);
 - ``lines="none"``: nothing (the batches of an epoch: the training loop writes a line per epoch).
 
 `note` writes a line of its own (an epoch's summary) without breaking a bar on a terminal.
@@ -71,7 +72,9 @@ def bar(iterable: Iterable[Any] | None = None, *, total: int | None = None, desc
 
         return tqdm(iterable, total=total, desc=desc, unit=unit, initial=initial, leave=leave,
                     smoothing=smoothing)
-    return LineProgress(iterable, total, desc, unit, initial, lines if enabled else "none")
+    if not enabled or (lines == "end" and not leave):
+        lines = "none"
+    return LineProgress(iterable, total, desc, unit, initial, lines)
 
 
 def note(line: str) -> None:

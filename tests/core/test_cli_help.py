@@ -89,8 +89,8 @@ def test_progress_without_a_terminal_is_plain_lines(monkeypatch):
         b.update(1)
     b.close()
     assert list(bar(range(4), desc="images", unit="img")) == [0, 1, 2, 3]  # one line at the end
-    for _ in bar(range(5), enabled=False):
-        pass
+    for bars in (bar(range(5), enabled=False), bar(range(5), leave=False)):  # no line
+        assert list(bars) == [0, 1, 2, 3, 4]
     lines = err.getvalue().splitlines()
     assert [x.split(",")[0] for x in lines] == ["generate: 1/3 cfg", "generate: 2/3 cfg",
                                                  "generate: 3/3 cfg", "images: 4/4 img"]

@@ -110,7 +110,8 @@ def test_a_full_disk_while_scoring_or_tuning_is_one_line(env, tmp_path, monkeypa
 
 
 def test_memory_estimate_grows_with_the_square_of_the_size():
-    from vistac_learn.train.config import build_model, protocol_cfg
+    from vistac_learn.train.build import build_model
+    from vistac_learn.train.config import protocol_cfg
     from vistac_learn.train.memory import check_fits, estimate_bytes
 
     model = build_model(protocol_cfg("default", "d", "o"))

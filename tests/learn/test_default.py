@@ -24,7 +24,8 @@ from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.evaluate.run import evaluate_run
 from vistac_learn.metrics import cone_metrics
 from vistac_learn.models.tipnet import apply_model
-from vistac_learn.train.config import build_model, build_samples, input_size, protocol_cfg
+from vistac_learn.train.build import build_model, build_samples, input_size
+from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.loop import masked_mse, train
 
 

@@ -45,15 +45,15 @@ from vistac_learn.metrics.scoring import (
     predict_mirror_averaged,
     score,
 )
-from vistac_learn.train.checkpoints import load_checkpoint, load_weights
-from vistac_learn.train.config import (
-    TrainCfg,
+from vistac_learn.train.build import (
     build_model,
     build_samples,
     build_view,
     input_size,
     resolve_device,
 )
+from vistac_learn.train.checkpoints import load_checkpoint, load_weights
+from vistac_learn.train.config import TrainCfg
 from vistac_learn.train.run_files import read_run_config, run_settings
 
 RETRAIN = "train the run again (`vistac train` into this folder without --resume)"

@@ -1,4 +1,5 @@
-"""A training run's settings (`TrainCfg`, written to ``config.json``) and what they build.
+"""A training run's settings (`TrainCfg`, written to ``config.json``) and its two protocols;
+what the settings build (device, view, model, samples) is `vistac_learn.train.build`.
 
 Two protocols, each a complete set of defaults (every option overrides either):
 
@@ -22,30 +23,22 @@ from __future__ import annotations
 import dataclasses
 import functools
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
-import torch
 
 from vistac.config import Config, ConfigError, param
-from vistac.dataset import DatasetTables, read_manifest
-from vistac.dataset.files import check_out_dir
+from vistac.dataset import SPLITS
 from vistac.errors import UserError
-from vistac_learn.data.fingertip_table import FingertipTable
 from vistac_learn.data.samples import (
     FINGER_CHOICES,
     ROTATION_MODES,
     TARGETS,
     AugmentCfg,
     RotationCfg,
-    SampleSet,
-    fingers_of,
 )
-from vistac_learn.data.tip_coverage import MAX_MISSING_PCT, TipCoverage, tip_coverage
-from vistac_learn.data.views import PINCH_VIEW, TIP_VIEW, VIEWS, View, make_view
-from vistac_learn.models import create_model, list_models
-from vistac_learn.models.pinch import EMBED, PinchModel
-from vistac_learn.models.tipnet import PerFinger
+from vistac_learn.data.tip_coverage import MAX_MISSING_PCT
+from vistac_learn.data.views import PINCH_VIEW, TIP_VIEW, VIEWS
+from vistac_learn.models import list_models
 
 DEVICES = ("auto", "cpu", "cuda")
 OPTIMIZERS = ("adam", "adamw")
@@ -102,11 +95,11 @@ class TrainCfg(Config):
                         "best epoch: loss or a summary metric of `cone_metrics` (e.g. "
                         "angle_to_mean_median_deg or error_median_pct, lower is better; "
                         "in_cone_pct, higher is better), averaged over the fingers")
-    train_split: str = param("train", choices=("train", "val", "test"), help="split to train on")
+    train_split: str = param("train", choices=SPLITS, help="split to train on")
     train_fraction: float = param(1.0, gt=0, le=1, help="train on this fraction of the training "
                                   "configurations (a seeded subset; smaller fractions are "
                                   "subsets of larger ones)")
-    val_split: str = param("val", choices=("train", "val", "test"), help="split to select on")
+    val_split: str = param("val", choices=SPLITS, help="split to select on")
     init: str | None = param(None, help="run folder whose best weights start this run "
                              "(fine-tuning); a head of another shape is re-initialised")
     freeze: str = param("none", choices=FREEZE, help="with --init: keep the feature layers "
@@ -208,119 +201,3 @@ def protocol_cfg(protocol: str, data: str, out: str, **changes) -> TrainCfg:
     base = {f.name: f.default for f in dataclasses.fields(TrainCfg)
             if f.default is not dataclasses.MISSING}
     return TrainCfg(**(base | PROTOCOLS[protocol] | {"data": data, "out": out} | changes))
-
-
-def resolve_device(name: str) -> torch.device:
-    """``auto`` -> CUDA when available, else CPU."""
-    if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    if name == "cuda" and not torch.cuda.is_available():
-        raise UserError("--device cuda: no CUDA device available")
-    return torch.device(name)
-
-
-def build_view(cfg: TrainCfg) -> View:
-    """The run's view."""
-    return make_view(cfg.variant, cfg.margin)
-
-
-def build_model(cfg: TrainCfg) -> torch.nn.Module:
-    """The run's model, freshly initialised from the seed (per finger for per-finger views)."""
-    view = build_view(cfg)
-    n_fingers = len(fingers_of(cfg.finger))
-    torch.manual_seed(cfg.seed)
-    try:
-        if view.name == PINCH_VIEW:
-            return PinchModel(create_model(cfg.model, view.channels, EMBED),
-                              fingers_of(cfg.finger), EMBED)
-        if view.per_finger:
-            embed = 32 if view.side_features else 2
-            return PerFinger(create_model(cfg.model, view.channels, embed), n_fingers,
-                             view.side_features, embed)
-        return create_model(cfg.model, in_channels=view.channels, out_features=2 * n_fingers)
-    except (KeyError, ValueError) as exc:
-        raise UserError(f"--model {cfg.model!r}: {exc}") from exc
-
-
-def input_size(cfg: TrainCfg, model: torch.nn.Module) -> int:
-    """Side of the rendered input: --size, else the model's own."""
-    return int(cfg.size or getattr(model, "input_size", 227))
-
-
-def subset_rows(rows: np.ndarray, fraction: float, seed: int) -> np.ndarray:
-    """The first ceil(fraction * n) rows of a permutation drawn from `seed` (nested in the
-    fraction: a smaller fraction is a subset of a larger one), in ascending order."""
-    if fraction >= 1:
-        return rows
-    keep = max(1, int(np.ceil(fraction * len(rows))))
-    return np.sort(rows[np.random.default_rng([seed, 7]).permutation(len(rows))[:keep]])
-
-
-def build_samples(cfg: TrainCfg, tables: DatasetTables, split: str, size: int,
-                  tips: FingertipTable | None, train: bool = False,
-                  mirror: bool = False) -> SampleSet:
-    """The samples of one split: training ones with the run's augmentation (and only its
-    `train_fraction`), others whole and without augmentation; `mirror` (not with `train`):
-    every sample mirrored (test-time augmentation)."""
-    view = build_view(cfg)
-    rows = tables.rows(split)
-    if train:
-        rows = subset_rows(rows, cfg.train_fraction, cfg.seed)
-    return SampleSet(tables, rows, view, size, fingers_of(cfg.finger),
-                     cfg.target if train else "mean", cfg.seed, cfg.rotation_cfg(),
-                     cfg.augment_cfg() if train else None, tips, mirror=mirror)
-
-
-def run_coverage(cfg: TrainCfg, tables: DatasetTables, tips: FingertipTable | None
-                 ) -> list[TipCoverage]:
-    """The fingertips not found in the run's training rows and validation split (nothing for
-    views that locate none), each split checked against ``cfg.max_missing_pct``.
-
-    Raises:
-        UserError: a split above the threshold (how many, an example image).
-    """
-    if tips is None:
-        return []
-    fingers = fingers_of(cfg.finger)
-    rows = {cfg.train_split: subset_rows(tables.rows(cfg.train_split), cfg.train_fraction,
-                                         cfg.seed),
-            cfg.val_split: tables.rows(cfg.val_split)}
-    out = [tip_coverage(tables, tips, r, fingers, split) for split, r in rows.items()]
-    for c in out:
-        c.check(cfg.max_missing_pct)
-    return out
-
-
-def check_paths(cfg: TrainCfg) -> None:
-    """Before any work: the dataset is complete, --out and --cache-dir can be written, --init
-    is a finished run.
-
-    Raises:
-        UserError: naming the option.
-    """
-    try:
-        read_manifest(Path(cfg.data))
-    except UserError as exc:
-        raise UserError(f"--data {exc}") from None
-    check_out_dir(cfg.out)
-    if cfg.cache_dir is not None:
-        check_out_dir(cfg.cache_dir, "--cache-dir")
-    if cfg.init is not None and not (Path(cfg.init) / "checkpoints" / "best.pt").is_file():
-        raise UserError(f"--init {cfg.init}: not a finished run (no checkpoints/best.pt)")
-
-
-def check_data(cfg: TrainCfg, progress: bool = False) -> list[str]:
-    """Before a tuning or an experiment: the run's dataset opens and its fingertips (located
-    into the cache, for views that need them) are found often enough; one line per split.
-
-    Raises:
-        UserError: a damaged dataset, a split above ``cfg.max_missing_pct``.
-    """
-    from vistac.dataset import open_dataset
-    from vistac_learn.data.fingertip_table import fingertip_table
-
-    if not build_view(cfg).needs_tips:
-        return []
-    tables = open_dataset(cfg.data)
-    tips = fingertip_table(tables, cache_dir=cfg.cache_dir, progress=progress)
-    return [f"{cfg.data}: {c.line()}" for c in run_coverage(cfg, tables, tips)]

@@ -19,11 +19,11 @@ Run folder (``--out``):
   history; written atomically at the end of every epoch and every ``checkpoint_every`` batches.
 - ``checkpoints/best.pt``: the model weights of the best validation epoch.
 
-Repeatability: weights are initialised after ``torch.manual_seed(seed)``; the order of the
-training samples in epoch e is a permutation drawn from ``numpy.random.default_rng([seed, e])``
-and every sample's augmentation from (seed, e, sample), independent of what ran before and of
-the loader's workers (``loader_workers``); the torch
-RNG state travels in the checkpoint. A run killed at any point and continued with ``--resume``
+Repeatability: weights are initialised from the seed in a seed scope (`build.build_model`);
+the order of the training samples in epoch e is a permutation drawn from
+``numpy.random.default_rng([seed, e])`` and every sample's augmentation from (seed, e, sample),
+independent of what ran before and of the loader's workers (``loader_workers``); the torch RNG
+state travels in the checkpoint. A run killed at any point and continued with ``--resume``
 therefore replays exactly the batches the uninterrupted run would have seen; on CPU its metrics
 are bit-identical. A run killed before its first checkpoint is simply started again.
 
@@ -55,6 +55,14 @@ from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.data.loading import loader
 from vistac_learn.data.samples import SampleSet, fingers_of
 from vistac_learn.metrics.scoring import predict, score_predictions
+from vistac_learn.train.build import (
+    build_model,
+    build_samples,
+    build_view,
+    input_size,
+    resolve_device,
+    run_coverage,
+)
 from vistac_learn.train.checkpoints import (
     BEST_KEYS,
     LAST_KEYS,
@@ -67,15 +75,7 @@ from vistac_learn.train.checkpoints import (
     save_last,
     trainable_parameters,
 )
-from vistac_learn.train.config import (
-    TrainCfg,
-    build_model,
-    build_samples,
-    build_view,
-    input_size,
-    resolve_device,
-    run_coverage,
-)
+from vistac_learn.train.config import TrainCfg
 from vistac_learn.train.losses import batch_loss, masked_mse  # noqa: F401  (masked_mse: API)
 from vistac_learn.train.memory import check_fits
 from vistac_learn.train.run_files import append_metrics, mark_diverged, restore_metrics

@@ -19,6 +19,7 @@ import torch
 
 from vistac.dataset.files import atomic_write_json, remove_stale_temporaries
 from vistac.errors import UserError
+from vistac_learn.train.build import build_view, input_size
 from vistac_learn.train.checkpoints import (
     BEST_KEYS,
     LAST_KEYS,
@@ -26,7 +27,7 @@ from vistac_learn.train.checkpoints import (
     load_checkpoint,
     trainable_parameters,
 )
-from vistac_learn.train.config import TrainCfg, build_view, input_size
+from vistac_learn.train.config import TrainCfg
 from vistac_learn.train.run_files import CONFIG, METRICS, is_diverged, read_run_config, run_settings
 
 RUN_FILES = frozenset({CONFIG, METRICS, "checkpoints", "eval"})

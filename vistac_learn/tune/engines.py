@@ -24,7 +24,8 @@ from typing import Any
 
 from vistac.config import Config, param
 from vistac.engine import ONLY_ASSIGNED_GPUS, EngineCfg, RayRunner, ray_session
-from vistac_learn.train.config import TrainCfg, build_view
+from vistac_learn.train.build import build_view
+from vistac_learn.train.config import TrainCfg
 
 TRIAL_RETRIES = 2  # times Ray re-runs a trial whose worker or node died
 TRIAL_OPTIONS = ("trial_cpus", "trial_gpus")
