@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from tqdm import tqdm
 
 from vistac.dataset import FINGERS, DatasetTables
 from vistac.dataset.files import remove_stale_temporaries, write_table
 from vistac.dataset.schema import PIXEL_CENTRE
 from vistac.errors import UserError
+from vistac.progress import bar as progress_bar
 from vistac.projection import Projection, displace, overlay_from_columns, rotz
 from vistac_learn.data import fingertips
 from vistac_learn.data.fingertips import FIELDS, Fingertip, LocatorCfg
@@ -185,8 +185,8 @@ def fingertip_table(tables: DatasetTables, cfg: LocatorCfg = LocatorCfg(),
         return cached
     colours = {f: tables.finger_rgb(f) for f in FINGERS}
     rows = []
-    for row in tqdm(range(len(tables.configs)), desc="locating fingertips", unit="img",
-                    disable=not progress, leave=False):
+    for row in progress_bar(range(len(tables.configs)), desc="locating fingertips",
+                            unit="img", enabled=progress, leave=False):
         found = locate_fingertips(read_rgb(tables.image_path(row)), colours, cfg)
         rows.append(record(int(tables.configs["config_id"].iat[row]), found))
     frame = pd.DataFrame(rows)
