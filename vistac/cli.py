@@ -71,6 +71,15 @@ def build_parser(argv: list[str]) -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `vistac` command; returns its exit status (2 for bad input)."""
     argv = sys.argv[1:] if argv is None else argv
+    if not all(a.isascii() for a in argv):  # before anything is read or written under a name
+        from vistac.dataset.files import locale_problem
+
+        for i, arg in enumerate(argv):
+            problem = locale_problem(arg)
+            if problem is not None:  # named after its option, as every error is
+                option = argv[i - 1] if i and argv[i - 1].startswith("-") else ""
+                print(f"vistac: error: {option} {problem}".replace(":  ", ": "), file=sys.stderr)
+                return 2
     try:
         args = build_parser(argv).parse_args(argv)
     except UsageError as exc:

@@ -227,8 +227,8 @@ def _serve_forks(conn: Connection, preload: tuple[str, ...]) -> None:
     for name in preload:
         try:
             importlib.import_module(name)
-        except ImportError:  # as the standard library's fork server: the job will say
-            pass
+        except Exception:  # noqa: BLE001 - as the standard library's fork server: the job's
+            pass  # own import will say why, in one line (e.g. a GL backend that cannot start)
     while True:
         try:
             message = conn.recv()

@@ -11,6 +11,7 @@ import json
 import os
 import platform
 import stat
+import sys
 from collections.abc import Iterable
 from importlib import import_module
 from pathlib import Path
@@ -165,6 +166,28 @@ def check_file(path: str | Path, option: str = "") -> None:
         raise UserError(f"{where}: is {what}, not a regular file; give a file")
 
 
+def locale_problem(text: str) -> str | None:
+    """Why `text` (a path or an argument) cannot be used under this process's locale, or None.
+
+    Under a C or POSIX locale with Python's UTF-8 mode off (``PYTHONUTF8=0``), file names are
+    ASCII: the bytes of a non-ASCII name arrive as lone surrogates, which no file, Parquet or
+    image library can write or open (a good dataset used to be called "unreadable"); under a
+    UTF-8 locale, so do the bytes of a name that is not UTF-8 (e.g. Latin-1).
+    """
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        shown = text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+        if sys.getfilesystemencoding().lower().replace("-", "") == "utf8":
+            return f"{shown}: a name that is not valid UTF-8 text; rename it"
+        env = os.environ
+        locale = env.get("LC_ALL") or env.get("LC_CTYPE") or env.get("LANG") or "C"
+        return (f"{shown}: not ASCII, and this process reads names as "
+                f"{sys.getfilesystemencoding()} (locale {locale}, PYTHONUTF8 off); run with "
+                "LC_ALL=C.UTF-8 (or PYTHONUTF8=1)")
+    return None
+
+
 def check_out_dir(path: str | Path, option: str = "--out") -> Path:
     """Check, before any work, that `path` can become (or is) an output folder.
 
@@ -177,6 +200,9 @@ def check_out_dir(path: str | Path, option: str = "--out") -> Path:
     Raises:
         UserError: `path` (or a parent) is a file, or the folder cannot be written.
     """
+    problem = locale_problem(str(path))
+    if problem is not None:
+        raise UserError(f"{option} {problem}")
     path = Path(path).expanduser().absolute()
     if path.exists() and not path.is_dir():
         raise UserError(f"{option} {path}: exists and is not a folder")

@@ -9,8 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from vistac.dataset import FINGERS
+from vistac.errors import UserError
 from vistac_sim.hand.ids import OBJECT_GROUP_COLLISION, ModelIds
-from vistac_sim.mj import gl_context, mujoco
+from vistac_sim.mj import gl_context, gl_error, mujoco
 from vistac_sim.render.boxes import boxes_from_outlines
 from vistac_sim.render.config import RenderCfg
 from vistac_sim.render.materials import texture_ids
@@ -66,12 +67,16 @@ class SharedContextRenderer(mujoco.Renderer):
         self._scene = mujoco.MjvScene(model=model, maxgeom=model.ngeom + 64)
         self._scene_option = mujoco.MjvOption()
         self._rect = mujoco.MjrRect(0, 0, size, size)
-        if gl_context.GLContext is not None:
-            if size not in _GL_CONTEXTS:
-                _GL_CONTEXTS[size] = gl_context.GLContext(size, size)
-            self._gl_context = _GL_CONTEXTS[size]
-            self._gl_context.make_current()
-        self._mjr_context = mujoco.MjrContext(model, mujoco.mjtFontScale.mjFONTSCALE_150.value)
+        try:
+            if gl_context.GLContext is not None:
+                if size not in _GL_CONTEXTS:
+                    _GL_CONTEXTS[size] = gl_context.GLContext(size, size)
+                self._gl_context = _GL_CONTEXTS[size]
+                self._gl_context.make_current()
+            self._mjr_context = mujoco.MjrContext(model,
+                                                  mujoco.mjtFontScale.mjFONTSCALE_150.value)
+        except Exception as exc:  # noqa: BLE001 - FatalError (no GL platform), GL errors
+            raise UserError(gl_error(" ".join(str(exc).split()) or type(exc).__name__)) from None
         mujoco.mjr_setBuffer(mujoco.mjtFramebuffer.mjFB_OFFSCREEN.value, self._mjr_context)
         self._mjr_context.readDepthMap = mujoco.mjtDepthMap.mjDEPTH_ZEROFAR
         self._depth_rendering = self._segmentation_rendering = False
