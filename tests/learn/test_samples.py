@@ -165,7 +165,7 @@ def test_side_features_say_where_the_other_finger_is(ds):
 
 
 def test_training_subsets_are_nested_and_seeded():
-    from vistac_learn.train.config import subset_rows
+    from vistac_learn.train.build import subset_rows
 
     rows = np.arange(10, 110)
     small, big = subset_rows(rows, 0.1, 3), subset_rows(rows, 0.33, 3)
@@ -284,3 +284,31 @@ def test_mirror_is_an_explicit_setting_of_the_samples(ds):
     np.testing.assert_array_equal(b["target"].numpy(), expect)
     with pytest.raises(ValueError, match="exclude"):
         _set(ds, mirror=True, augment=AugmentCfg())
+
+
+def test_samples_no_epoch_changes_are_rendered_once(ds, monkeypatch):
+    """The study's samples (fixed rotations, no augmentation) come from memory after their
+    first rendering, identical to a fresh rendering; augmented or randomly turned samples are
+    rendered anew at every epoch."""
+    import vistac_learn.data.samples as samples
+
+    fixed = _set(ds, view="edge-index", fingers=("index",),
+                 rotations=RotationCfg("fixed", 3, 18.0))
+    first = fixed[0, 4]
+    calls = []
+    monkeypatch.setattr(fixed, "_render", lambda *a: calls.append(a))
+    again = fixed[5, 4]
+    assert not calls  # epoch 5 read the sample rendered at epoch 0
+    fresh = _set(ds, view="edge-index", fingers=("index",),
+                 rotations=RotationCfg("fixed", 3, 18.0))[5, 4]
+    for k in first:
+        np.testing.assert_array_equal(again[k], fresh[k])
+    assert not again["image"].flags.writeable
+    for kw in ({"rotations": RotationCfg("random", 2, 18.0)}, {"augment": AugmentCfg()}):
+        s = _set(ds, view="edge-index", fingers=("index",), **kw)
+        s[0, 1]
+        assert not s._cache
+    monkeypatch.setattr(samples, "RENDER_CACHE_BYTES", 0)  # over the budget: rendered anew
+    small = _set(ds, view="edge-index", fingers=("index",))
+    small[0, 1]
+    assert not small._cache

@@ -3,7 +3,10 @@
 A sample is (configuration, rotation[, press]). Its image is decoded from the dataset's PNG and
 turned into the model's input by a view (`vistac_learn.data.views`) when the item is asked for;
 nothing per rotation or per augmentation is stored, so memory stays flat as the dataset grows
-(one batch of decoded images at a time, plus the per-configuration tables). Batches come from a
+(one batch of decoded images at a time, plus the per-configuration tables), except that a
+sample which is the same at every epoch (no augmentation, no random rotation: the study's
+protocol, every validation and test split) is rendered once and kept, up to `RENDER_CACHE_BYTES`
+per set, so that later epochs pay only for the network. Batches come from a
 torch `DataLoader` (`vistac_learn.data.loading`); a batch's samples are rendered by two threads
 while the training step waits (`SampleSet.__getitems__`).
 
@@ -58,6 +61,9 @@ Item = dict[str, np.ndarray]  # one sample: what `SampleSet.__getitem__` returns
 Key = int | tuple[int, int]  # sample index, or (epoch, sample index)
 
 TARGETS = ("mean", "press", "all")
+RENDER_CACHE_BYTES = 1 << 30
+"""Rendered samples a `SampleSet` keeps when they are the same at every epoch (1 GiB: 100 000
+study inputs of 100 x 100 pixels); the rest are rendered each time."""
 FINGER_CHOICES = (*FINGERS, "both")  # the values of a `--finger` option
 
 
@@ -196,6 +202,10 @@ class SampleSet(torch.utils.data.Dataset):
         self._table_rgb = tables.table_rgb
         self._contacts = contact_truth(tables) if view.needs_contacts else None
         self._draws: tuple[int, np.ndarray] | None = None  # (epoch, press draws), see targets
+        # rendered samples that no epoch changes (see `render`): item -> render's result
+        self._cache_on = augment is None and rotations.mode != "random"
+        self._cache: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, Aug]] = {}
+        self._cache_bytes = 0
 
     def __len__(self) -> int:
         return len(self.item_row)
@@ -287,7 +297,22 @@ class SampleSet(torch.utils.data.Dataset):
 
     def render(self, item: int, epoch: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, Aug]:
         """One sample's model input: pixels (uint8), side features and auxiliary targets
-        (float32), and the augmentation they were rendered with."""
+        (float32), and the augmentation they were rendered with; a sample that no epoch
+        changes is rendered once and then read from memory (`RENDER_CACHE_BYTES`)."""
+        hit = self._cache.get(item) if self._cache_on else None
+        if hit is not None:
+            return hit
+        out = self._render(item, epoch)
+        if self._cache_on:
+            size = sum(a.nbytes for a in out[:3])
+            if self._cache_bytes + size <= RENDER_CACHE_BYTES:
+                for a in out[:3]:
+                    a.setflags(write=False)  # shared by every epoch: nobody may change it
+                self._cache[item] = out
+                self._cache_bytes += size
+        return out
+
+    def _render(self, item: int, epoch: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, Aug]:
         row = int(self.item_row[item])
         rgb = self.image(row)
         info, aug = self.info(row), self.aug(item, epoch)
