@@ -61,8 +61,11 @@ def _write_image(path: Path, data: bytes) -> None:
     """Write one image in place (no temporary file and rename): an image only counts once its
     chunk's shard is committed, after this write returned, and a resumed run rewrites the images
     of every uncommitted chunk, so a torn image can never stay in a dataset."""
-    with open(path, "wb") as fh:
-        fh.write(data)
+    try:
+        with open(path, "wb") as fh:
+            fh.write(data)
+    except OSError as exc:  # a full disk: one line naming the file
+        raise files.write_error(path, exc) from None
 
 
 class ChunkMaker:

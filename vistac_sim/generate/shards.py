@@ -27,6 +27,7 @@ from vistac.dataset.files import (
     remove_stale_temporaries,
     table_counts,
     temporary_path,
+    write_error,
     write_manifest,
     write_row_groups,
 )
@@ -63,6 +64,8 @@ def write_shard(path: Path, rows: list[dict]) -> None:
         with pa.OSFile(str(tmp), "wb") as fh, pa.ipc.new_file(fh, table.schema) as writer:
             writer.write_table(table)
         os.replace(tmp, path)
+    except OSError as exc:  # a full disk: one line naming the file
+        raise write_error(path, exc) from None
     finally:
         tmp.unlink(missing_ok=True)
 
