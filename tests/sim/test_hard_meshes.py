@@ -136,8 +136,9 @@ def test_every_repeat_solve_is_checked(monkeypatch):
 
 
 def test_failed_draws_are_counted_and_named_in_the_error():
-    cfg = apply(GenerateCfg(), {"physics": {"timestep": 0.1}, "grasp": {"max_redraws": 6}})
+    cfg = apply(GenerateCfg(), {"grasp": {"max_redraws": 6}})
     rig = _box_rig(cfg)
+    rig.model.opt.timestep = 0.1  # MuJoCo warns BADQACC (a config refuses such a step)
     with pytest.raises(NoValidGrasp) as err:
         draw_grasp(rig, np.random.default_rng(0), cfg)
     n = err.value.redraws["mujoco_warning"]
@@ -215,3 +216,45 @@ def test_decomposed_hard_meshes_give_true_labels(name, friction, tmp_path_factor
     folder = tmp_path_factory.mktemp(name)
     rig, cfg, kept = _press_stress_mesh(name, friction, folder)
     _assert_labels(name, friction, rig, cfg, kept)
+
+
+# ------------------------------------------------------------------- physics in scene files
+def _cli_cfg(*argv: str) -> GenerateCfg:
+    from vistac.cli import build_parser
+    from vistac_sim.generate.command import generate_cfg_from_args
+
+    argv = ["generate", "--out", "unused", *argv]
+    return generate_cfg_from_args(build_parser(argv).parse_args(argv))
+
+
+def test_scene_files_set_physics_and_the_cli_wins(tmp_path):
+    scene = tmp_path / "s.yaml"
+    scene.write_text("physics: {friction: 0.3, noslip_iterations: 5}\n")
+    cfg = _cli_cfg("--scene", str(scene))
+    assert cfg.physics.friction == 0.3 and cfg.physics.noslip_iterations == 5
+    assert _cli_cfg("--scene", str(scene), "--friction", "0.8").physics.friction == 0.8
+    assert _cli_cfg().physics.friction == 0.8  # the default without a scene file
+
+
+@pytest.mark.parametrize("text, key, figure", [
+    ("physics: {approach_steps: 1}\n", "physics.approach_steps", "3.9 at 30 ms or less"),
+    ("physics: {settle_steps: 1}\n", "physics.settle_steps", "1.8 deg off at 1 step"),
+    ("physics: {solimp: [0.5, 0.9, 10]}\n", "physics.solimp", "3.9 at (0.5, 0.9, 10)"),
+    ("[physics]\ntimestep = 0.1\n", "physics.timestep", "BADQACC"),
+    ("physics: {frition: 0.3}\n", "physics.frition", "unknown key"),
+])
+def test_scene_physics_known_to_bias_labels_is_refused_with_the_bias(tmp_path, text, key,
+                                                                      figure):
+    scene = tmp_path / ("s.toml" if text.startswith("[") else "s.yaml")
+    scene.write_text(text)
+    with pytest.raises(UserError) as err:
+        GenerateCfg.from_file(scene)
+    msg = str(err.value)
+    assert msg.startswith(str(scene)) and key in msg and figure in msg and "\n" not in msg
+
+
+def test_python_api_warns_of_biased_physics():
+    from vistac_sim.physics.config import BiasedPhysicsWarning, PhysicsCfg
+
+    with pytest.warns(BiasedPhysicsWarning, match="settle_steps: 1 biases labels"):
+        PhysicsCfg(settle_steps=1)

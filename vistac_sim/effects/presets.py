@@ -1,16 +1,20 @@
 """Named effect presets and scene files (`--preset NAME`, `--scene FILE`).
 
-A preset or scene file is a partial config: ``effects`` (fields of `EffectsCfg`) and
-``recording`` (fields of `RecordingCfg`). An optional effect is switched on by a table of its
-parameters (merged over the preset's, or the defaults) or by ``true``, and off by ``false`` or
-``null``. A scene file may name its base ``preset``; the `--preset` option wins over it. Example
-(YAML; TOML works the same with ``[effects.fts3]`` tables)::
+A preset or scene file is a partial config: ``effects`` (fields of `EffectsCfg`),
+``recording`` (fields of `RecordingCfg`) and ``physics`` (fields of `PhysicsCfg`: friction,
+time step, the press's phases, contact softness, the checks' tolerances; a value known to bias
+labels is refused with its measured bias, `vistac_sim.physics.config.label_bias`). An optional
+effect is switched on by a table of its parameters (merged over the preset's, or the defaults)
+or by ``true``, and off by ``false`` or ``null``. A scene file may name its base ``preset``;
+the `--preset` option wins over it. Example (YAML; TOML works the same with ``[effects.fts3]``
+tables)::
 
     preset: lab
     effects:
       fts3: {hysteresis: 0.03, drift_std: 0.02}
       finger_pull: false
     recording: {hold_s: 1.5}
+    physics: {friction: 0.5}
 
 Unknown keys and values of the wrong type are errors naming the file and the key.
 """
@@ -18,6 +22,7 @@ Unknown keys and values of the wrong type are errors naming the file and the key
 from __future__ import annotations
 
 import tomllib
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +30,7 @@ from vistac.config import apply
 from vistac.errors import UserError
 from vistac.safe_yaml import load_yaml
 from vistac_sim.effects import EffectsCfg
+from vistac_sim.physics.config import BiasedPhysicsWarning, PhysicsCfg, label_bias
 from vistac_sim.recording.config import RecordingCfg
 
 # What each preset switches on, over the defaults of each effect's config.
@@ -76,12 +82,23 @@ SCENE_SUFFIXES = (".yaml", ".yml", ".toml")
 MAX_SCENE_BYTES = 1 << 20
 """A scene file is a few settings: anything larger is a mistake (or an attack), refused unread."""
 # The parts of the generate config a scene file may set, with their config classes.
-SECTIONS = {"effects": EffectsCfg, "recording": RecordingCfg}
+SECTIONS = {"effects": EffectsCfg, "recording": RecordingCfg, "physics": PhysicsCfg}
 
 
 def resolve(preset: str | None = None, scene: str | Path | None = None,
             noise: float | None = None) -> tuple[EffectsCfg, RecordingCfg]:
-    """The effects and session config of a preset, a scene file applied over it, and `--noise`.
+    """The effects and session config of a preset, a scene file applied over it, and `--noise`
+    (`resolve_sections` without the physics)."""
+    sections = resolve_sections(preset, scene, noise)
+    return sections["effects"], sections["recording"]
+
+
+def resolve_sections(preset: str | None = None, scene: str | Path | None = None,
+                     noise: float | None = None) -> dict[str, Any]:
+    """Each section of `SECTIONS` from a preset, a scene file applied over it, and `--noise`.
+
+    A ``physics`` table that sets a value known to bias labels (`label_bias`) is refused, with
+    the bias measured.
 
     Args:
         preset: preset name; None takes the scene file's ``preset`` or else ``clean``.
@@ -102,11 +119,16 @@ def resolve(preset: str | None = None, scene: str | Path | None = None,
         for key, value in layer.items():
             if key not in sections:
                 raise UserError(f"{where}: unknown key {key!r} (known: {', '.join(sections)})")
-            sections[key] = apply(sections[key], value, where, prefix=key)
-    effects, recording = sections["effects"], sections["recording"]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", BiasedPhysicsWarning)  # refused just below
+                sections[key] = apply(sections[key], value, where, prefix=key)
+    biased = label_bias(sections["physics"])
+    if biased:
+        raise UserError(f"{source}: physics.{biased[0][0]}: {biased[0][1]}")
     if noise is not None:
-        effects = apply(effects, {"noise": noise}, labels={"noise": "--noise"})
-    return effects, recording
+        sections["effects"] = apply(sections["effects"], {"noise": noise},
+                                    labels={"noise": "--noise"})
+    return sections
 
 
 def load_scene(path: str | Path) -> dict[str, Any]:

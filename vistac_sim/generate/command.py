@@ -72,7 +72,9 @@ def add_command(sub: argparse._SubParsersAction) -> None:
     add_options(p, GenerateCfg, DRAW_OPTIONS)
     add_options(p, GenerateCommandCfg, ("workers",))
     add_options(p, EngineCfg, ENGINE_OPTIONS + WRITES_OPTIONS)
-    add_options(p, GenerateCfg, SCENE_OPTIONS)
+    for action in add_options(p, GenerateCfg, SCENE_OPTIONS):
+        if action.dest == "friction":  # None unless given: a scene file's physics.friction stays
+            action.default = None
     add_options(p, GenerateCommandCfg, ("resume",))
     add_progress_option(p)
     p.set_defaults(func=_generate)
@@ -87,8 +89,10 @@ def generate_cfg_from_args(args: argparse.Namespace) -> GenerateCfg:
     cmd = from_options(GenerateCommandCfg, args, COMMAND_OPTIONS)
     base = GenerateCfg.from_preset(cmd.preset, scene=cmd.scene, noise=args.noise,
                                    recordings=cmd.recordings)
-    cfg = apply(base, option_values(args, GenerateCfg, OPTIONS),
-                labels=flag_labels(GenerateCfg, OPTIONS))
+    values = option_values(args, GenerateCfg, OPTIONS)
+    if values["physics"]["friction"] is None:  # --friction not given
+        del values["physics"]
+    cfg = apply(base, values, labels=flag_labels(GenerateCfg, OPTIONS))
     return cfg
 
 

@@ -17,7 +17,7 @@ from typing import Any
 from vistac.config import Config, ConfigError, param, to_dict
 from vistac.dataset import SplitCfg
 from vistac_sim.effects import EffectsCfg
-from vistac_sim.effects.presets import resolve
+from vistac_sim.effects.presets import resolve_sections
 from vistac_sim.hand.config import HandCfg
 from vistac_sim.objects.config import ObjectsCfg
 from vistac_sim.physics.config import PhysicsCfg
@@ -105,16 +105,19 @@ class GenerateCfg(Config):
         Raises:
             UserError: an unknown preset, an unreadable scene file, a value a field refuses.
         """
-        effects, recording = resolve(preset, scene, noise)
+        sections = resolve_sections(preset, scene, noise)
+        recording = sections["recording"]
         if recordings and not recording.write:
             recording = dataclasses.replace(recording, write=True)
-        return cls(effects=effects, recording=recording, **fields)
+        fields.setdefault("physics", sections["physics"])  # a physics= argument wins
+        return cls(effects=sections["effects"], recording=recording, **fields)
 
     @classmethod
     def from_file(cls, path: str | Path, *, preset: str | None = None,
                   noise: float | None = None, recordings: bool = False,
                   **fields: Any) -> GenerateCfg:
-        """A complete config from a scene file (its ``preset``, ``effects``, ``recording``).
+        """A complete config from a scene file (its ``preset``, ``effects``, ``recording``,
+        ``physics``).
 
         `preset` and `noise`, when given, win over the file's; see `from_preset`.
         """
