@@ -241,3 +241,33 @@ def test_the_lock_follows_a_symlink_between_two_processes(tmp_path):
     with hold(link, "second"):
         pass
     assert not [p for p in os.listdir(tmp_path) if p.endswith(".lock")]
+
+
+def test_a_tuning_resumes_from_another_working_directory(env, tmp_path, monkeypatch):
+    """A tuning's settings record absolute paths: resumed from another directory, with paths
+    relative to it, it is the same tuning (it used to say "other base settings (data, out)");
+    another dataset still is not. A tuning recorded with relative paths resumes from where it
+    was started, as before."""
+    import vistac
+    from vistac_learn.tune import driver
+    from vistac_learn.tune.space import load_space
+
+    data = Path(env["paths"]["data"])
+    (tmp_path / "a" / "deep").mkdir(parents=True)
+    shutil.copytree(data, tmp_path / "data")
+
+    def check(cwd: Path, data_path: str, out_path: str, resume: bool) -> None:
+        monkeypatch.chdir(cwd)
+        base = vistac.TrainCfg(data=data_path, out=out_path)
+        cfg = driver.TuneCfg(out=out_path, trials=1)
+        driver.check_folder(cfg, base, load_space(None), resume)
+        if not resume:
+            Path(out_path).mkdir()
+            driver.atomic_write_json(Path(out_path) / "config.json",
+                                     driver._meta(cfg, base, load_space(None)))
+
+    check(tmp_path / "a", "../data", "tune", resume=False)
+    check(tmp_path / "a" / "deep", "../../data", "../tune", resume=True)
+    check(tmp_path, "data", "a/tune", resume=True)
+    with pytest.raises(UserError, match=r"--resume with other base settings \(data\)"):
+        check(tmp_path, str(data), "a/tune", resume=True)

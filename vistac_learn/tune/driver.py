@@ -35,6 +35,7 @@ import dataclasses
 import io
 import json
 import math
+import os
 import shutil
 import warnings
 from collections.abc import Iterator
@@ -167,7 +168,19 @@ def _write_rows(path: Path, rows: list[dict[str, Any]], space: SpaceCfg) -> None
 
 
 def _meta(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg) -> dict[str, Any]:
-    return {"tune": to_dict(cfg), "base": to_dict(base), "space": space.to_json()}
+    return {"tune": to_dict(cfg), "base": _absolute(to_dict(base)), "space": space.to_json()}
+
+
+_PATHS = ("data", "out", "cache_dir")
+"""The base settings that are paths."""
+
+
+def _absolute(base: dict[str, Any]) -> dict[str, Any]:
+    """A tuning's base settings with its paths absolute (a relative one, recorded by an older
+    version, as seen from here): resumed from another working directory, a tuning of the same
+    dataset has the same settings."""
+    return {k: os.path.abspath(v) if k in _PATHS and isinstance(v, str) else v
+            for k, v in base.items()}
 
 
 def check_folder(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool) -> None:
@@ -223,6 +236,7 @@ def _check_folder(cfg: TuneCfg, meta: dict, resume: bool) -> None:
             raise ValueError("not a tuning's settings")
     except (OSError, UnicodeDecodeError, AttributeError, ValueError):
         return  # damaged: written again from these options (each trial's run checks its own)
+    saved["base"] = _absolute(saved["base"])
     for part in ("base", "space"):
         if saved[part] != meta[part]:
             diff = [k for k in meta[part] if saved[part].get(k) != meta[part][k]]
