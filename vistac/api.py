@@ -39,7 +39,6 @@ from typing import TYPE_CHECKING, Any
 
 from vistac.config import checked
 from vistac.errors import UserError, brief
-from vistac.folder_kinds import EVALUATION, mark
 from vistac.folder_lock import hold
 from vistac.outputs import Dataset, Evaluation, Report, Run
 
@@ -216,7 +215,6 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
             raise UserError(f"--data {exc}") from None
     out = check_out_dir(cfg.out_dir)
     with hold(out, "evaluate"):  # refuses a folder of another kind, or of a user's files
-        mark(out, EVALUATION)
         res = _score(cfg, out, progress)
     return Evaluation(out, res)
 

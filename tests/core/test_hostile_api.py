@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import torch
-from bad_input_env import GEN_OK
+from bad_input_env import GEN_OK, TRAIN_OK
 
 import vistac
 from vistac.cli import main
@@ -187,3 +187,40 @@ def test_run_open_checks_what_it_reports(env):
     torch.save(torch.load(best, weights_only=True) | {"epoch": 1.5}, best)
     with pytest.raises(UserError, match=r"best.pt: its epoch is 1.5, not a whole number"):
         vistac.outputs.Run.open(run)
+
+
+# ------------------------------------------------------------- checkpoints that cannot score
+def _nan_weights(ck: dict) -> dict:
+    name = next(k for k, v in ck["model"].items() if v.is_floating_point())
+    model = dict(ck["model"])
+    model[name] = model[name].clone().fill_(float("nan"))
+    return ck | {"model": model}
+
+
+CHECKPOINT_CASES = {
+    "evaluate-nan-weights": ("evaluate --run {run} --no-plots", _nan_weights,
+                             "is not finite (NaN or infinite); train the run again"),
+    "evaluate-epoch-not-a-number": ("evaluate --run {run} --no-plots",
+                                    lambda ck: ck | {"epoch": "one"},
+                                    "best.pt: its epoch is 'one', not a whole number"),
+    "init-nan-weights": (TRAIN_OK.replace("{out}", "{run}-next") + " --init {run}",
+                         _nan_weights, "--init {run}/checkpoints/best.pt: weight"),
+}
+
+
+@pytest.mark.parametrize("case", CHECKPOINT_CASES)
+def test_a_best_checkpoint_that_cannot_score_is_refused(case, env, capsys):
+    argv, change, needle = CHECKPOINT_CASES[case]
+    run = _run_copy(env, case)
+    best = run / "checkpoints" / "best.pt"
+    original = best.read_bytes()
+    torch.save(change(torch.load(best, weights_only=True)), best)
+    paths = {**env["paths"], "run": str(run)}
+    capsys.readouterr()
+    assert main(argv.format(**paths).split()) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "Traceback" not in err, err
+    assert needle.format(**paths) in err, err
+    assert not (run / "eval" / "test").exists() and not Path(f"{run}-next").exists()
+    best.write_bytes(original)  # the good checkpoint back: the same command works
+    assert main(argv.format(**paths).split()) == 0

@@ -156,8 +156,9 @@ def test_kinds_are_read_from_what_each_command_wrote(env):
 
 
 def test_evaluate_marks_its_folder_and_scores_into_it_again(env, capsys):
-    """An evaluation's folder says so before its first file; a second evaluation into it (its
-    own) works, while a user's file beside it is kept."""
+    """An evaluation's folder says so before its first file (and a refused evaluation leaves
+    none); a second evaluation into it (its own) works, while a user's file beside it is
+    kept."""
     out = env["root"] / "owners" / "evaluation"
     argv = _argv(E, env, out)
     assert main(argv) == 0

@@ -29,7 +29,8 @@ import torch
 
 from vistac.dataset import open_dataset
 from vistac.dataset.files import atomic_write_bytes
-from vistac.errors import UserError
+from vistac.errors import UserError, brief
+from vistac.folder_kinds import EVALUATION, mark
 from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.data.samples import RotationCfg, fingers_of
 from vistac_learn.data.tip_coverage import MAX_MISSING_PCT, tip_coverage
@@ -81,9 +82,12 @@ def load_model(
     if not path.exists():
         raise UserError(f"{path}: missing (has the run finished an epoch?)")
     ck = load_checkpoint(path, ("model", "epoch"), RETRAIN, map_location=device)
+    epoch = ck["epoch"]
+    if not isinstance(epoch, int) or isinstance(epoch, bool) or epoch < 0:
+        raise UserError(f"{path}: its epoch is {brief(epoch)}, not a whole number; {RETRAIN}")
     model = build_model(cfg)
     load_weights(model, ck["model"], path, RETRAIN)
-    return model.to(device), int(ck["epoch"])
+    return model.to(device), epoch
 
 
 def _write_outputs(
@@ -105,7 +109,7 @@ def _write_outputs(
     `refs` (`references.references`) adds the noise floor and the pinch baseline below the
     scored rows of the table and under ``"references"`` in the JSON.
     """
-    out.mkdir(parents=True, exist_ok=True)
+    mark(out, EVALUATION)  # the folder's kind, before its first file
     res = score(pred, tables, rows, item_row, fingers, full=True)
     cids = tables.configs["config_id"].to_numpy()
     frame = {"config_id": cids[item_row], "rotation": item_rot}

@@ -167,8 +167,25 @@ def load_checkpoint(path: Path, keys: Sequence[str], fix: str, map_location="cpu
     return ck
 
 
+def nonfinite_weight(state: object) -> str | None:
+    """The name of the first floating-point tensor of `state` holding NaN or infinity, or None;
+    a model with such weights predicts NaN everywhere, so it is not loaded to be scored or to
+    start another run from."""
+    if not isinstance(state, dict):
+        return None
+    for name, value in state.items():
+        if isinstance(value, torch.Tensor) and value.is_floating_point() \
+                and not bool(torch.isfinite(value).all()):
+            return str(name)
+    return None
+
+
 def load_weights(model: torch.nn.Module, state: dict, path: Path, fix: str) -> None:
-    """`model.load_state_dict(state)`, a mismatch (other model, damaged tensors) one line."""
+    """`model.load_state_dict(state)`, a mismatch (other model, damaged tensors) or weights that
+    are not finite one line."""
+    bad = nonfinite_weight(state)
+    if bad is not None:
+        raise UserError(f"{path}: weight {bad} is not finite (NaN or infinite); {fix}")
     try:
         model.load_state_dict(state)
     except (RuntimeError, TypeError, AttributeError) as exc:
@@ -209,6 +226,9 @@ def init_from_run(model: torch.nn.Module, cfg) -> dict:
         raise UserError(f"--init {exc}") from None
     if not isinstance(saved, dict):
         raise UserError(f"--init {path}: not a checkpoint of model weights; choose another run")
+    if nonfinite_weight(saved) is not None:
+        raise UserError(f"--init {path}: weight {nonfinite_weight(saved)} is not finite (NaN or "
+                        "infinite); choose another --init run")
     own = model.state_dict()
     copied = [k for k, v in saved.items()
               if k in own and isinstance(v, torch.Tensor) and own[k].shape == v.shape]
