@@ -9,7 +9,8 @@ that, so its sub-pixel finger fit is reused unchanged.
 The net (`TinyUNet`) is a five-level U-Net with full-resolution output (`DEFAULT_WIDTHS`, about
 230 k parameters), trained on generator images with exact labels (clean renders, the same
 renders perturbed by `vistac_learn.data.perturb`, and ``--preset photo --masks`` renders of
-three seeds; see ``benchmarks/train_segmenter.py``). Its weights ship with the package
+three seeds: `vistac_learn.train.segmenter`, run by ``benchmarks/train_segmenter.py``). Its
+weights ship with the package
 (`WEIGHTS`) and load with ``torch.load(weights_only=True)``.
 """
 
