@@ -10,8 +10,7 @@ The net (`TinyUNet`) is a five-level U-Net with full-resolution output (`DEFAULT
 230 k parameters), trained on generator images with exact labels (clean renders, the same
 renders perturbed by `vistac_learn.data.perturb`, and ``--preset photo --masks`` renders of
 three seeds: `vistac_learn.train.segmenter`, run by ``benchmarks/train_segmenter.py``). Its
-weights ship with the package
-(`WEIGHTS`) and load with ``torch.load(weights_only=True)``.
+weights ship with the package (`WEIGHTS`) and load with ``torch.load(weights_only=True)``.
 """
 
 from __future__ import annotations
