@@ -1,5 +1,5 @@
 """Only regular files are read where data is read (issue 31): a named pipe (FIFO) where a file
-is expected (an image of the dataset, ``manifest.json``, ``--space``, an ``--init`` run's
+is expected (an image of the dataset, ``manifest.json``, ``--space``, a texture, an ``--init`` run's
 ``config.json`` or ``best.pt``) used to block the command forever, waiting for a writer. Each
 row now ends in exit status 2 and one line naming the file; the folder is as it was, and once
 the pipe is replaced by the real file the good command works.
@@ -77,6 +77,13 @@ def init_file(name: str) -> Callable:
     return setup
 
 
+def texture(env, case: Path) -> dict:
+    folder = case / "textures"
+    folder.mkdir(parents=True)
+    shutil.copy(Path(env["paths"]["data2"]) / "images" / "000000.png", folder / "a.png")
+    return {"tex": folder, "pipe": _pipe(folder / "a.png")}
+
+
 def finished_dataset_image(env, case: Path) -> dict:
     out = case / "out"
     shutil.copytree(env["paths"]["data2"], out)
@@ -91,6 +98,8 @@ CASES = {
     "train-init-config": (T + " --init {init}", init_file("config.json"), PIPE),
     "train-init-best": (T + " --init {init}", init_file("checkpoints/best.pt"),
                         "--init {init}: not a finished run (no checkpoints/best.pt)"),
+    "generate-texture": (GEN_OK + " --preset photo --textures {tex}", texture,
+                         "--textures " + PIPE),
     "generate-resume-image": (GEN_OK + " --resume", finished_dataset_image,
                               "{pipe}: a named pipe (FIFO), not a file"),
 }

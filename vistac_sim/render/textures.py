@@ -19,6 +19,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from vistac.dataset.files import check_file
 from vistac.errors import UserError
 from vistac.textures import BANK_PHOTOS, cut, photo
 
@@ -72,6 +73,7 @@ def user_textures(folder: str | None) -> tuple[np.ndarray, ...]:
         raise UserError(f"--textures {folder}: no such folder")
     out = []
     for f in sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES):
+        check_file(f, "--textures")  # a named pipe would block the read
         img = cv2.imread(str(f), cv2.IMREAD_COLOR)
         if img is not None:
             out.append(_square(img[..., ::-1]))
