@@ -30,7 +30,12 @@ from vistac_sim.objects.decomposition import (
     convex_decomposition,
     pieces_section,
 )
-from vistac_sim.objects.meshes import find_mesh_files, load_mesh, scale_to_footprint
+from vistac_sim.objects.meshes import (
+    find_mesh_files,
+    load_mesh,
+    mesh_section,
+    scale_to_footprint,
+)
 from vistac_sim.objects.specs import ObjectSpec, procedural_library
 
 __all__ = ["ObjectSpec", "BuiltObject", "build_object", "extruded_object", "mesh_library",
@@ -96,6 +101,14 @@ def build_object(spec: ObjectSpec, finger_height: float, min_wall: float = 0.001
         return obj
     mesh = scale_to_footprint(load_mesh(spec.path), spec.footprint)
     z = press_height(float(mesh.bounds[1, 2]), finger_height, min_height, spec.path)
+    outline = extrusion_outline(mesh)
+    if outline is not None:  # a prism (most CAD plates and brackets): its exact pieces
+        obj = BuiltObject(spec=spec, mesh=mesh, pieces=[
+            trimesh.creation.extrude_polygon(p, float(mesh.bounds[1, 2]))
+            for p in outlines.convex_pieces(outline)], section=outline, rgb=rgb, press_height=z)
+        mesh.metadata.setdefault("repairs", []).append(
+            f"an extrusion: collided as its {len(obj.pieces)} exact convex piece(s)")
+        return obj
     pieces = _faithful_pieces(mesh, spec, cache_dir, shape_tolerance)
     section = pieces_section(pieces, z)
     if section.is_empty:
@@ -105,6 +118,24 @@ def build_object(spec: ObjectSpec, finger_height: float, min_wall: float = 0.001
         section = max(section.geoms, key=lambda g: g.area)
     return BuiltObject(spec=spec, mesh=mesh, pieces=pieces, section=section, rgb=rgb,
                        press_height=z, vertical_walls=False)
+
+
+def extrusion_outline(mesh: trimesh.Trimesh, tol: float = 1e-6) -> Polygon | None:
+    """The top-view outline of a closed mesh that is a straight extrusion of it from the table
+    (every face horizontal or vertical, volume = outline area x height), else None."""
+    if not mesh.is_watertight:
+        return None
+    nz = np.abs(mesh.face_normals[:, 2])
+    if not np.all((nz < tol) | (nz > 1 - tol)):
+        return None
+    height = float(mesh.bounds[1, 2] - mesh.bounds[0, 2])
+    try:
+        outline = mesh_section(mesh, height / 2)
+    except UserError:
+        return None
+    if abs(outline.area * height - mesh.volume) > 1e-4 * mesh.volume:
+        return None
+    return outline
 
 
 def _faithful_pieces(mesh: trimesh.Trimesh, spec: ObjectSpec, cache_dir: Path | None,
