@@ -23,6 +23,18 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(skip)
 
 
+@pytest.fixture
+def one_torch_thread():
+    """One torch thread for a test (tiny models: threads only add overhead on a shared CPU),
+    the previous count restored after it."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
 @pytest.fixture(scope="session")
 def small_dataset(tmp_path_factory):
     """A real 24-configuration dataset made by `vistac.generate` (in-process, one worker)."""

@@ -2,16 +2,11 @@
 thread for every test here."""
 
 import pytest
-import torch
 from bad_input_env import env  # noqa: F401  (a fixture)
 
 
 @pytest.fixture(autouse=True)
-def _one_torch_thread():
+def _one_torch_thread(one_torch_thread):
     """One torch thread for each test of tests/core (tiny models: threads only add overhead),
     the previous count restored after it. Set once for the whole session, it had slowed every
     later test's training (the study net's sanity check: 107 s instead of 64 on 2 cores)."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)

@@ -9,14 +9,7 @@ import torch
 from vistac_learn.train.build import _new_model, build_model
 from vistac_learn.train.config import protocol_cfg
 
-
-@pytest.fixture(autouse=True)
-def one_thread():
-    """One torch thread: the fastest for small models on a shared CPU (restored after)."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")  # tests/conftest.py
 
 
 def _weights(model: torch.nn.Module) -> list[torch.Tensor]:

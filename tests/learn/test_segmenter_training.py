@@ -15,14 +15,7 @@ from vistac_learn.train.segmenter import (
     train_segmenter,
 )
 
-
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Tiny networks: one torch thread is the fastest on a shared CPU (restored after)."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")  # tests/conftest.py
 
 
 COLOURS = np.array([[200, 200, 200], [60, 60, 140], [230, 40, 40], [40, 200, 60]], np.uint8)
