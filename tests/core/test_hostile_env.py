@@ -9,6 +9,7 @@ same command in a good environment works.
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -59,3 +60,28 @@ def test_a_name_that_is_not_text_is_refused_from_python():
     arrive as lone surrogates) is refused in one line naming the option."""
     with pytest.raises(UserError, match="--out .*dataset-\ufffd: a name that is not valid UTF-8"):
         check_out_dir("/tmp/dataset-\udcf6")  # Latin-1 "ö"
+
+
+def test_ingest_refuses_a_file_name_that_is_not_utf8(env, tmp_path, capsys):
+    """A recording and its image named in Latin-1 (``café``) used to end in pyarrow's
+    UnicodeEncodeError traceback; now one line names the file, nothing is written, and the
+    files renamed, the same command works."""
+    from vistac.cli import main
+
+    rec, img = tmp_path / "rec", tmp_path / "img"
+    shutil.copytree(env["paths"]["rec"], rec)
+    shutil.copytree(env["paths"]["img"], img)
+    latin1 = b"caf\xe9".decode("utf-8", "surrogateescape")
+    (rec / "000001.csv").rename(rec / f"{latin1}.csv")
+    (img / "000001.png").rename(img / f"{latin1}.png")
+    out = tmp_path / "out"
+    argv = ["ingest", "--recordings", str(rec), "--images", str(img), "--out", str(out)]
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "Traceback" not in err, err
+    assert "caf\ufffd.png: a name that is not valid UTF-8 text; rename it" in err, err
+    assert not out.exists()
+    (rec / f"{latin1}.csv").rename(rec / "cafe.csv")
+    (img / f"{latin1}.png").rename(img / "cafe.png")
+    assert main(argv) == 0

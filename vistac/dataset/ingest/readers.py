@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 
 from vistac.dataset import FINGERS
+from vistac.dataset.files import locale_problem
 from vistac.dataset.ingest.config import UNITS, IngestCfg
 from vistac.dataset.schema import LABEL_COLUMNS
 from vistac.errors import UserError
@@ -149,6 +150,9 @@ def files_by_stem(folder: Path, suffixes: tuple[str, ...], what: str) -> dict[st
     out: dict[str, Path] = {}
     for p in sorted(folder.iterdir()):
         if p.is_file() and p.suffix.lower() in suffixes:
+            problem = locale_problem(str(p))
+            if problem is not None:  # its name cannot be written into a table
+                raise UserError(problem)
             if p.stem in out:
                 raise UserError(f"{folder}: two {what} files for {p.stem!r}: {out[p.stem].name}, "
                                 f"{p.name}")
