@@ -9,17 +9,15 @@ from pathlib import Path
 
 from vistac.config import (
     Config,
-    ConfigError,
     HelpFormatter,
     add_options,
-    allowed_range,
-    field_of,
     from_options,
     param,
 )
 from vistac.dataset import SplitCfg
 from vistac.dataset.files import check_out_dir
-from vistac.dataset.ingest.config import ColumnMap, IngestCfg, IngestSources
+from vistac.dataset.ingest.config import MAX_COLUMN, ColumnMap, IngestCfg, IngestSources
+from vistac.dataset.recordings import FORCE_COLUMNS
 from vistac.errors import UserError
 
 SOURCE_OPTIONS = ("recordings", "images", "labels", "labels_sheet")
@@ -36,6 +34,10 @@ class IngestCommandCfg(Config):
     report: Path | None = param(None, help="also write a page per recording (its 50 Hz series, "
                                 "grasp segments, chosen samples, rejection reasons; rejected "
                                 "first) and their index report.md into this folder")
+    columns: tuple[int, int, int, int, int, int] = param(
+        (*FORCE_COLUMNS["thumb"], *FORCE_COLUMNS["index"]), ge=0, le=MAX_COLUMN,
+        metavar=("THUMB_X", "THUMB_Y", "THUMB_Z", "INDEX_X", "INDEX_Y", "INDEX_Z"),
+        help="0-based CSV columns of the forces (the two fields of `ColumnMap` in one option)")
 
 
 def add_command(sub: argparse._SubParsersAction) -> None:
@@ -53,12 +55,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
     add_options(p, IngestCommandCfg, ("out", "report"))
     add_options(p, IngestSources, SOURCE_OPTIONS[2:])
     add_options(p, IngestCfg, CFG_OPTIONS)
-    c = ColumnMap()
-    columns = p.add_argument(  # one option for the two fields of `ColumnMap`
-        "--columns", type=int, nargs=6, default=[*c.thumb, *c.index],
-        metavar=("THUMB_X", "THUMB_Y", "THUMB_Z", "INDEX_X", "INDEX_Y", "INDEX_Z"),
-        help="0-based CSV columns of the forces")
-    columns.allowed = allowed_range(field_of(ColumnMap, "thumb")[0].metadata, each=True)
+    add_options(p, IngestCommandCfg, ("columns",))
     add_options(p, IngestCfg, CRITERIA_OPTIONS)
     add_options(p, IngestSources, ("objects_csv",))
     add_options(p, SplitCfg, SPLIT_OPTIONS)
@@ -69,11 +66,8 @@ def add_command(sub: argparse._SubParsersAction) -> None:
 def _run_ingest(args: argparse.Namespace) -> int:
     from vistac.api import ingest
 
-    try:
-        columns = ColumnMap(tuple(args.columns[:3]), tuple(args.columns[3:]))
-    except ConfigError as exc:
-        raise UserError(f"--columns: {exc.reason}") from None
-    command = from_options(IngestCommandCfg, args, ("out", "report"))
+    command = from_options(IngestCommandCfg, args, ("out", "report", "columns"))
+    columns = ColumnMap(command.columns[:3], command.columns[3:])
     out = command.out
     check_out_dir(out)
     if command.report is not None:

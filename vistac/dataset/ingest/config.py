@@ -10,14 +10,15 @@ from vistac.dataset import SplitCfg
 from vistac.dataset.recordings import FORCE_COLUMNS
 
 UNITS = {"mN": 1e-3, "N": 1.0}  # unit of the CSV's force cells -> newtons
+MAX_COLUMN = 100_000  # the highest CSV column a force may be read from
 
 
 @dataclass(frozen=True)
 class ColumnMap(Config):
     """0-based CSV columns of each finger's F_x, F_y, F_z (docs/dataset-format.md by default)."""
 
-    thumb: tuple[int, int, int] = param(FORCE_COLUMNS["thumb"], ge=0, le=100_000)
-    index: tuple[int, int, int] = param(FORCE_COLUMNS["index"], ge=0, le=100_000)
+    thumb: tuple[int, int, int] = param(FORCE_COLUMNS["thumb"], ge=0, le=MAX_COLUMN)
+    index: tuple[int, int, int] = param(FORCE_COLUMNS["index"], ge=0, le=MAX_COLUMN)
 
     def of(self, finger: str) -> tuple[int, int, int]:
         return getattr(self, finger)
