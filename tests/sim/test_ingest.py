@@ -159,7 +159,7 @@ def test_error_out_in_use_and_object_split_without_mapping(folders, tmp_path):
     out = tmp_path / "ds"
     out.mkdir()
     (out / "x").write_text("keep me")
-    with pytest.raises(UserError, match="not empty and holds no dataset \(it holds x\)"):
+    with pytest.raises(UserError, match=r"not empty and holds no dataset \(it holds x\)"):
         ingest(IngestSources(images=img, recordings=rec), out)
     assert (out / "x").read_text() == "keep me"
     (out / "x").unlink()
