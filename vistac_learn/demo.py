@@ -28,6 +28,7 @@ from vistac.config import (
     param,
 )
 from vistac.dataset import SplitCfg
+from vistac.progress import add_progress_option, progress_wanted
 
 
 @dataclass(frozen=True)
@@ -49,10 +50,11 @@ class DemoCfg(Config):
             raise ConfigError("model", f"unknown model {self.model!r} (see `vistac models`)")
 
 
-def run_demo(cfg: DemoCfg) -> Path:
+def run_demo(cfg: DemoCfg, progress: bool = True) -> Path:
     """Run the demo pipeline into `cfg.out` and return the path of its report.
 
-    Each step is a call of the Python API (`vistac.api`), as a script of one's own would make it.
+    Each step is a call of the Python API (`vistac.api`), as a script of one's own would make it;
+    `progress`: their progress on stderr.
     """
     from vistac import api
     from vistac_learn.evaluate.command import EvaluateCfg
@@ -67,16 +69,16 @@ def run_demo(cfg: DemoCfg) -> Path:
         gen = GenerateCfg.from_preset("clean", noise=0.05, n=cfg.n, seed=cfg.seed,
                                       split=SplitCfg(by="object"))
         api.generate(gen, data, workers=cfg.workers, resume=(data / ".partial").exists(),
-                     progress=True)
+                     progress=progress)
     t_data = time.perf_counter() - t0
     t1 = time.perf_counter()
     train = TrainCfg.from_protocol("default", model=cfg.model, epochs=cfg.epochs, seed=cfg.seed)
     trained = api.train(train, data, run,
-                        resume=(run / "checkpoints" / "last.pt").exists(), progress=True)
+                        resume=(run / "checkpoints" / "last.pt").exists(), progress=progress)
     t_train = time.perf_counter() - t1
-    api.evaluate(trained, progress=True)
+    api.evaluate(trained, progress=progress)
     api.evaluate(EvaluateCfg(baseline="geometric", data=str(data), out=str(out / "baseline"),
-                             finger="both", rotations="none"), progress=True)
+                             finger="both", rotations="none"), progress=progress)
     return write_report(out, data, run, t_data, t_train)
 
 
@@ -147,6 +149,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         "demo", help="generate, train, evaluate and report on a small default",
         description=__doc__, formatter_class=RawDescriptionHelpFormatter)
     add_options(p, DemoCfg, OPTIONS)
+    add_progress_option(p)
     p.set_defaults(func=_handler)
 
 
@@ -160,5 +163,5 @@ def _handler(args: argparse.Namespace) -> int:
     cfg = from_options(DemoCfg, args, OPTIONS)
     check_out_dir(cfg.out)
     check_workers(cfg.workers)
-    print(f"report: {run_demo(cfg)}")
+    print(f"report: {run_demo(cfg, progress=progress_wanted(args))}")
     return 0

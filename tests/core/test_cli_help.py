@@ -72,7 +72,8 @@ def test_help_shows_each_default_and_range(parsers):
 
 
 def test_no_progress_is_one_name_and_quiet_a_hidden_alias(parsers):
-    for name in ("generate", "train", "tune", "experiment sim2real", "experiment label-noise"):
+    for name in ("generate", "train", "evaluate", "tune", "experiment sim2real",
+                 "experiment label-noise", "demo"):
         parser = parsers[name]
         assert "--no-progress" in parser.format_help()
         assert "--quiet" not in parser.format_help()

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import Literal
 
 from vistac.config import Config, ConfigError, HelpFormatter, add_options, from_options, param
+from vistac.progress import add_progress_option, progress_wanted
 from vistac_learn.data.samples import FINGER_CHOICES, ROTATION_MODES, RotationCfg
 from vistac_learn.data.tip_coverage import MAX_MISSING_PCT
 from vistac_learn.train.config import DEVICES
@@ -92,13 +93,14 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         formatter_class=HelpFormatter,
     )
     add_options(p, EvaluateCfg, OPTIONS)
+    add_progress_option(p)
     p.set_defaults(func=_handler)
 
 
 def _handler(args: argparse.Namespace) -> int:
     from vistac.api import evaluate
 
-    ev = evaluate(from_options(EvaluateCfg, args, OPTIONS), progress=True)
+    ev = evaluate(from_options(EvaluateCfg, args, OPTIONS), progress=progress_wanted(args))
     print(ev.table)
     if ev.result.get("fingertips_line"):
         print(ev.result["fingertips_line"])
