@@ -26,26 +26,18 @@ Usage:
     python benchmarks/appearance_stress.py --data D --run clean=runs/r1 --run aug=runs/r2
     python benchmarks/appearance_stress.py --out bench/stress_photo --photo   # all made here
 
-The photo-trained model (``benchmarks/results/appearance_stress_photo.*``), one command; D is
-``vistac generate --n 3000 --noise 0.05 --seed 21 --split-by object``, D_PHOTO the same with
-``--preset photo``, the runs ``vistac train --data D|D|D_PHOTO --out R --finger both``
-(R_APP with ``--appearance 0.5``; R_PHOTO with ``--max-missing-pct 10``: the locator loses
-3.5 % of the photo training fingertips, above the default limit of 1 %):
+The committed ``benchmarks/results/appearance_stress.*``: D is ``vistac generate --n 3000
+--noise 0.05 --seed 21 --split-by object``, D_PHOTO the same with ``--preset photo``; R is
+``vistac train --data D --out R --finger both`` (the default recipe, seed 0; R1 the same with
+``--seed 1``), R_PHOTO ``vistac train --data D_PHOTO --out R_PHOTO --finger both
+--max-missing-pct 10``:
 
     python benchmarks/appearance_stress.py --data D --photo-data D_PHOTO \
-        --run "default (pinchnet)=R" --run "default + --appearance 0.5=R_APP" \
-        --run "default, trained on photo=R_PHOTO" --name appearance_stress_photo
-
-The committed file was made in two parts to save time on the shared machine (the clean-trained
-runs' perturbation rows are in ``appearance_stress_pinchnet.md``): the photo-trained run on
-every image set, then the others on clean and photo images with the first part added:
-
+        --run "default (--appearance 0.5), seed 0=R" \
+        --run "trained on photo (+ --appearance 0.5)=R_PHOTO" --true-tips
     python benchmarks/appearance_stress.py --data D --photo-data D_PHOTO \
-        --run "default, trained on photo=R_PHOTO" --no-baselines --name appearance_stress_photo_run
-    python benchmarks/appearance_stress.py --data D --photo-data D_PHOTO \
-        --run "default (pinchnet)=R" --run "default + --appearance 0.5=R_APP" \
-        --images "photo preset" --add benchmarks/results/appearance_stress_photo_run.json \
-        --name appearance_stress_photo
+        --run "default (--appearance 0.5), seed 1=R1" --images all --no-baselines \
+        --name appearance_stress_seed1
 """
 
 from __future__ import annotations
@@ -53,40 +45,37 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import matplotlib  # noqa: E402
+import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from learnbench import ensure_dataset, headline_data, machine, run_entry, save, slug  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from learnbench import ensure_dataset, headline_data, run_entry, save, slug
 
-from vistac.dataset import FINGERS, DatasetTables, open_dataset  # noqa: E402
-from vistac.errors import UserError  # noqa: E402
-from vistac_learn.data.fingertip_table import (  # noqa: E402
+from vistac.dataset import FINGERS, DatasetTables, open_dataset
+from vistac.errors import UserError
+from vistac_learn.data.fingertip_table import (
     FingertipTable,
     fingertip_table,
     located_in,
     record,
 )
-from vistac_learn.data.fingertips import Fingertip  # noqa: E402
-from vistac_learn.data.perturb import PERTURBATIONS, Scene, perturb, segment  # noqa: E402
-from vistac_learn.data.samples import SampleSet, moved_fingertip  # noqa: E402
-from vistac_learn.data.tip_coverage import MAX_MISSING_PCT  # noqa: E402
-from vistac_learn.data.variants import read_rgb  # noqa: E402
-from vistac_learn.evaluate.geometric import GeometricCfg, predict_image  # noqa: E402
-from vistac_learn.evaluate.pinch import PinchCfg, dataset_friction  # noqa: E402
-from vistac_learn.evaluate.pinch import predict_image as pinch_image  # noqa: E402
-from vistac_learn.evaluate.run import load_model, load_run  # noqa: E402
-from vistac_learn.metrics.scoring import predict, predict_mirror_averaged, score  # noqa: E402
-from vistac_learn.train.config import build_view, input_size, resolve_device  # noqa: E402
+from vistac_learn.data.fingertips import Fingertip
+from vistac_learn.data.perturb import PERTURBATIONS, Scene, perturb, segment
+from vistac_learn.data.samples import SampleSet, moved_fingertip
+from vistac_learn.data.tip_coverage import MAX_MISSING_PCT
+from vistac_learn.data.variants import read_rgb
+from vistac_learn.evaluate.geometric import GeometricCfg, predict_image
+from vistac_learn.evaluate.pinch import PinchCfg, dataset_friction
+from vistac_learn.evaluate.pinch import predict_image as pinch_image
+from vistac_learn.evaluate.run import load_model, load_run
+from vistac_learn.metrics.scoring import predict, predict_mirror_averaged, score
+from vistac_learn.train.build import build_view, input_size, resolve_device
 
 # A predictor maps (dataset, rows, their images, the homographies from the clean renders to
 # them or None) to (len(rows), 4) predictions, index then thumb (r_y, r_z), and the number of
@@ -391,7 +380,7 @@ def main() -> None:
               "n_test_configs": int(len(rows)), "seed": a.seed,
               "runs": {k: str(v) for k, v in runs.items()}, "run_configs": cfgs,
               "train_wall_s": train_s, "stress_wall_s": time.perf_counter() - t0,
-              "machine": machine(), "results": res}
+              "results": res}
     md = (f"Appearance stress on the test split of {data} ({len(rows)} configurations of "
           "held-out objects); median angle to the cone mean (deg) and its change over clean "
           f"images; perturbations drawn from seed {a.seed}. Runs: "
@@ -403,7 +392,7 @@ def main() -> None:
           + "\n\n" + markdown(res, names))
     a.results.mkdir(parents=True, exist_ok=True)
     plot(res, names, a.results / f"{a.name}.png")
-    save(a.results, a.name, result, md)
+    save(a.results, a.name, result, md, datasets=(data, photo_data))
 
 
 if __name__ == "__main__":

@@ -17,16 +17,13 @@ Usage (the issue's dataset: `vistac generate --n 3000 --noise 0.05 --seed 21 --s
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
+from learnbench import cpu_s, reference_entries, save
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from learnbench import cpu_s, machine, reference_entries, save  # noqa: E402
-
-import vistac  # noqa: E402
+import vistac
 
 METRIC = "angle_to_mean_median_deg"
 
@@ -76,7 +73,7 @@ def main() -> None:
                        for s, t in times.items()) or "none (existing runs)") + ".\n\n"
           + "\n".join(lines) + "\n")
     save(a.results, a.name, {"data": str(a.data), "rows": rows, "references": refs,
-                             "train": times, "machine": machine()}, md)
+                             "train": times}, md, datasets=(a.data,))
 
 
 if __name__ == "__main__":

@@ -25,6 +25,7 @@ import time
 from pathlib import Path
 
 from vistac.config import apply
+from vistac.provenance import provenance
 from vistac_sim.effects.finger_pull import FingerPullCfg
 from vistac_sim.effects.fts3 import Fts3Cfg
 from vistac_sim.effects.placement_error import PlacementErrorCfg
@@ -142,7 +143,8 @@ def main() -> None:
         print(f"| {k} | {v:.2f} | {spread} | {v / base:.3f} x ({v - base:+.2f} s) |")
     print(f"\nall disabled / bypassed = {base / med['bypassed']:.3f}")
     if args.json:
-        Path(args.json).write_text(json.dumps({"n": args.n, "times": times}, indent=2))
+        Path(args.json).write_text(json.dumps({"n": args.n, "times": times,
+                                                     "provenance": provenance()}, indent=2))
 
 
 if __name__ == "__main__":

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from vistac.dataset import open_dataset
+from vistac.provenance import provenance
 from vistac_sim.objects.outlines import CONCAVE_FAMILIES
 
 
@@ -53,7 +54,7 @@ def main() -> None:
         summary[kind] = {"families": len(sel),
                          "worst_family_median_deg": max(r["median_deg"] for r in sel),
                          "worst_family_p95_deg": max(r["p95_deg"] for r in sel)}
-    result = {"n": args.n, "families": rows, "summary": summary}
+    result = {"n": args.n, "families": rows, "summary": summary, "provenance": provenance()}
     (args.out / "result.json").write_text(json.dumps(result, indent=2) + "\n")
     print(f"{'family':<14}{'contacts':>9}{'median':>10}{'p95':>10}{'max':>10}  (degrees)")
     for fam, r in rows.items():

@@ -21,8 +21,9 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from generate_vs_bare import _children_cpu, adopt_orphans, reap_orphans  # noqa: E402
+from generate_vs_bare import _children_cpu, adopt_orphans, reap_orphans
+
+from vistac.provenance import provenance
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -85,6 +86,7 @@ def main() -> None:
                      "runs": [[round(w, 2), round(c, 2)] for w, c in rs]}
     result["wall_ratio"] = round(result["after"]["wall_s"] / result["before"]["wall_s"], 3)
     result["cpu_ratio"] = round(result["after"]["cpu_s"] / result["before"]["cpu_s"], 3)
+    result["provenance"] = provenance()
     args.results.mkdir(parents=True, exist_ok=True)
     (args.results / "generate_before_after.json").write_text(json.dumps(result, indent=2) + "\n")
     (args.results / "generate_before_after.md").write_text(markdown(result))

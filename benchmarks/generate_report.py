@@ -10,11 +10,14 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from vistac.provenance import provenance
+
 
 def write_report(result: dict, folder: Path) -> None:
     folder.mkdir(parents=True, exist_ok=True)
     label = result.get("label") or ""
     name = f"generate_vs_bare_{label}.json" if label else "generate_vs_bare.json"
+    result = {**result, "provenance": provenance()}
     (folder / name).write_text(json.dumps(result, indent=2) + "\n")
     now_file = folder / "generate_vs_bare.json"
     before_file = folder / "generate_vs_bare_before.json"

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from vistac.provenance import provenance
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.run import generate
 
@@ -54,7 +55,7 @@ def main() -> None:
         print(f"| {r['preset']} | {r['noise']} | {r['median_w_index']:.4f} | "
               f"{r['median_w_thumb']:.4f} | {r['wall_s']:.1f} |")
     if args.json:
-        Path(args.json).write_text(json.dumps(rows, indent=2))
+        Path(args.json).write_text(json.dumps({"rows": rows, "provenance": provenance()}, indent=2))
 
 
 if __name__ == "__main__":

@@ -34,19 +34,16 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import matplotlib  # noqa: E402
+import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from learnbench import (  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from learnbench import (
     baseline_entry,
     cpu_s,
     ensure_dataset,
     headline_data,
-    machine,
     mean_entry,
     run_entry,
     save,
@@ -54,9 +51,9 @@ from learnbench import (  # noqa: E402
     table,
 )
 
-from vistac.dataset import FINGERS, open_dataset, unit_labels  # noqa: E402
-from vistac.dataset.schema import clean_force_columns  # noqa: E402
-from vistac_learn.metrics.scoring import score  # noqa: E402
+from vistac.dataset import FINGERS, open_dataset, unit_labels
+from vistac.dataset.schema import clean_force_columns
+from vistac_learn.metrics.scoring import score
 
 
 def _default_entry(data: Path, out: Path, progress: bool) -> dict:
@@ -147,9 +144,9 @@ def main(argv: list[str] | None = None) -> int:
              ("CPU s", "cpu_s"), ("epochs", "epochs"), ("best", "best_epoch"))
     md = table(entries, extra)
     plot(entries, args.out / f"{args.name}.png")
-    save(args.out, args.name, {"dataset": str(data), "machine": machine(),
+    save(args.out, args.name, {"dataset": str(data),
                                      "settings": {k: str(v) for k, v in vars(args).items()},
-                                     "entries": entries}, md)
+                                     "entries": entries}, md, datasets=(data,))
     return 0
 
 

@@ -32,6 +32,7 @@ import torch
 
 import vistac
 from vistac.dataset import SplitCfg, open_dataset
+from vistac.provenance import provenance
 from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.metrics.scoring import ANGLE_COLUMNS, STUDY_COLUMNS
@@ -147,6 +148,7 @@ def run_protocol(args: argparse.Namespace) -> dict:
             "batched (64) forward passes on the test pairs.")
     result["table"] = table
     (out / "table.md").write_text(table + "\n\n" + note + "\n")
+    result["provenance"] = provenance([data])
     (out / "results.json").write_text(json.dumps(result, indent=2))
     print(table)
     print(note)

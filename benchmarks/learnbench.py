@@ -9,18 +9,16 @@ from __future__ import annotations
 
 import csv
 import json
-import os
-import platform
 import re
 import resource
 import time
 from pathlib import Path
 
 import numpy as np
-import torch
 
 import vistac
 from vistac.dataset import FINGERS, SplitCfg, open_dataset
+from vistac.provenance import provenance
 from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.references import LABELS, references
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
@@ -172,15 +170,10 @@ def table(entries: list[dict], extra: tuple[tuple[str, str], ...] = ()) -> str:
     return "\n".join(lines)
 
 
-def machine() -> dict:
-    """Where the numbers were measured."""
-    return {"platform": platform.platform(), "cpu_count": os.cpu_count(),
-            "torch_threads": torch.get_num_threads(), "torch": torch.__version__,
-            "python": platform.python_version()}
-
-
-def save(out: Path, name: str, result: dict, markdown: str) -> None:
-    """Write ``<name>.json`` and ``<name>.md`` into `out` and print the table."""
+def save(out: Path, name: str, result: dict, markdown: str, datasets=()) -> None:
+    """Write ``<name>.json`` (with its `provenance`: command, commit, date, machine and the
+    fingerprints of `datasets`) and ``<name>.md`` into `out` and print the table."""
+    result = {**result, "provenance": provenance([d for d in datasets if d is not None])}
     out.mkdir(parents=True, exist_ok=True)
     (out / f"{name}.json").write_text(json.dumps(result, indent=2))
     (out / f"{name}.md").write_text(markdown + "\n")

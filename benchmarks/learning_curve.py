@@ -40,29 +40,26 @@ import resource
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import matplotlib  # noqa: E402
+import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from learnbench import (  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from learnbench import (
     ensure_dataset,
     fmt,
     headline_data,
-    machine,
     mean_entry,
     reference_entries,
     run_entry,
     save,
     slug,
 )
-from matplotlib.ticker import ScalarFormatter  # noqa: E402
+from matplotlib.ticker import ScalarFormatter
 
-from vistac.dataset import open_dataset  # noqa: E402
-from vistac_learn.train.config import TrainCfg  # noqa: E402
-from vistac_learn.train.run_folder import finished  # noqa: E402
+from vistac.dataset import open_dataset
+from vistac_learn.train.config import TrainCfg
+from vistac_learn.train.run_folder import finished
 
 RECIPES = (("default (pinchnet, pinch view)", {}),
            ("previous default (tipnet, tip view)", {"model": "tipnet", "variant": "tip"}))
@@ -162,9 +159,10 @@ def report(rows: list[dict], refs: list[dict], out: Path, data: Path, settings: 
     if missing:
         md += "\n\nNot trained (no result): " + ", ".join(missing) + "."
     plot(rows, refs, out / "learning_curve.png")
-    save(out, "learning_curve", {"dataset": str(data), "machine": machine(),
+    save(out, "learning_curve", {"dataset": str(data),
                                  "settings": settings, "rows": rows, "references": refs,
-                                 "missing": list(missing), "peak_rss_mib": peak_mib}, md)
+                                 "missing": list(missing), "peak_rss_mib": peak_mib}, md,
+         datasets=(data,))
 
 
 def main(argv: list[str] | None = None) -> int:

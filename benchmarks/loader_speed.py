@@ -25,6 +25,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from vistac.provenance import provenance
+
 HERE = Path(__file__).resolve().parents[1]
 RESULTS = HERE / "benchmarks" / "results"
 
@@ -115,6 +117,7 @@ def main(argv: list[str] | None = None) -> int:
            "median": summary, "over_before": ratio,
            "results_identical_to_before": same_as_before, "repeatable": repeatable,
            "final_epoch": runs["after"][0]["results"][-1], "runs": runs}
+    out["provenance"] = provenance([a.data])
     stem = Path(a.out)
     stem.parent.mkdir(parents=True, exist_ok=True)
     stem.with_suffix(".json").write_text(json.dumps(out, indent=2))

@@ -30,17 +30,15 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+import numpy as np
+from learnbench import ensure_dataset, headline_data, save
 
-import numpy as np  # noqa: E402
-from learnbench import ensure_dataset, headline_data, machine, save  # noqa: E402
-
-from vistac.dataset import FINGERS, open_dataset  # noqa: E402
-from vistac.dataset.splits import SplitCfg  # noqa: E402
-from vistac_learn.data.fingertip_table import simulator_tips  # noqa: E402
-from vistac_learn.data.fingertips import LOCATOR_VERSION, LocatorCfg, colour_fingertips  # noqa: E402
-from vistac_learn.data.locator import combine, learned_fit, locate_fingertips, refined_fingertips  # noqa: E402
-from vistac_learn.data.perturb import (  # noqa: E402
+from vistac.dataset import FINGERS, open_dataset
+from vistac.dataset.splits import SplitCfg
+from vistac_learn.data.fingertip_table import simulator_tips
+from vistac_learn.data.fingertips import LOCATOR_VERSION, LocatorCfg, colour_fingertips
+from vistac_learn.data.locator import combine, learned_fit, locate_fingertips, refined_fingertips
+from vistac_learn.data.perturb import (
     PERTURBATIONS,
     Scene,
     map_direction,
@@ -48,8 +46,8 @@ from vistac_learn.data.perturb import (  # noqa: E402
     perturb,
     segment,
 )
-from vistac_learn.data.variants import read_rgb  # noqa: E402
-from vistac_sim.generate.config import GenerateCfg  # noqa: E402
+from vistac_learn.data.variants import read_rgb
+from vistac_sim.generate.config import GenerateCfg
 
 TIP_PX, AXIS_DEG = 2.0, 3.0  # the agreed tolerance (tests/learn/test_fingertips.py)
 
@@ -281,7 +279,7 @@ def main() -> None:
         res["speed"] = fast
     res |= {"locator_version": LOCATOR_VERSION, "data": str(data), "photo": str(photo),
             "seed": a.seed,
-            "wall_s": time.perf_counter() - t0, "machine": machine(),
+            "wall_s": time.perf_counter() - t0,
             "tolerance": {"tip_px": TIP_PX, "axis_deg": AXIS_DEG}}
     md = (f"Fingertip locator v{LOCATOR_VERSION} on {res['n_images']} images of {data} "
           f"(x2 fingers), clean and perturbed (seed {a.seed}), and {res['n_images']} images of "
@@ -294,7 +292,7 @@ def main() -> None:
         md += (f"\n\nSpeed on {sp['n_images']} clean images, timed interleaved: "
                f"{sp['now_ms_per_image']:.1f} ms per image now, "
                f"{sp['before_ms_per_image']:.1f} ms with the locator of {sp['rev']}.")
-    save(a.out, a.name, res, md)
+    save(a.out, a.name, res, md, datasets=(data, photo))
 
 
 if __name__ == "__main__":

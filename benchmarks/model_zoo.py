@@ -25,19 +25,16 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-import matplotlib  # noqa: E402
+import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-from learnbench import (  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import torch
+from learnbench import (
     ensure_dataset,
     fmt,
     headline_data,
-    machine,
     mean_entry,
     reference_entries,
     run_entry,
@@ -45,9 +42,10 @@ from learnbench import (  # noqa: E402
     slug,
 )
 
-from vistac.dataset import open_dataset  # noqa: E402
-from vistac_learn.models import count_macs  # noqa: E402
-from vistac_learn.train.config import build_model, input_size, protocol_cfg  # noqa: E402
+from vistac.dataset import open_dataset
+from vistac_learn.models import count_macs
+from vistac_learn.train.build import build_model, input_size
+from vistac_learn.train.config import protocol_cfg
 
 MODELS = ("pinchnet", "tipnet", "smallconv", "randomconv", "mobilenetv2-tiny", "resnet-tiny",
           "schoeconv100-v1", "schoeconv100-v3-fc160", "alexnet-1x1", "schoeconv227-v1")
@@ -199,8 +197,9 @@ def report(rows: list[dict], refs: list[dict], out: Path, data: Path, epochs: in
             fmt(float(np.mean([m[f]["in_cone_pct"] for f in m]))),
             fmt(float(np.mean([m[f]["correct_y_pct"] for f in m])))]) + " |")
     plot(rows, refs, out / "model_zoo.png")
-    save(out, "model_zoo", {"dataset": str(data), "machine": machine(), "epochs": epochs,
-                            "rows": rows, "references": refs}, "\n".join(lines))
+    save(out, "model_zoo", {"dataset": str(data), "epochs": epochs,
+                            "rows": rows, "references": refs}, "\n".join(lines),
+         datasets=(data,))
 
 
 if __name__ == "__main__":

@@ -26,6 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from vistac.provenance import provenance
 from vistac_sim.effects import build_pipeline
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.configuration import make_configuration
@@ -121,6 +122,7 @@ def main() -> None:
     if not args.skip_memory:
         res["peak_rss_mib"] = {p: {str(n): peak_rss_mib(n, args.seed, p)
                                    for n in (args.n, 4 * args.n)} for p in ("clean", "photo")}
+    res["provenance"] = provenance()
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "photo_cost.json").write_text(json.dumps(res, indent=2) + "\n")
     lines = [f"# photo preset cost (n = {args.n}, 1 worker, {args.rounds} rounds; shared, "

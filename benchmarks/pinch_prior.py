@@ -31,6 +31,7 @@ import torch
 
 from vistac.dataset import FINGERS, open_dataset, unit_labels
 from vistac.dataset.schema import clean_force_columns
+from vistac.provenance import provenance
 from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.data.loading import loader
 from vistac_learn.data.samples import SampleSet
@@ -94,6 +95,7 @@ def main(argv: list[str] | None = None) -> int:
         f"({len(rows)} configurations), `python benchmarks/pinch_prior.py`.\n\n{md}\n")
     (args.out / "pinch_prior.json").write_text(json.dumps(
         {"dataset": str(args.data), "split": "test", "n": int(len(rows)),
+         "provenance": provenance([args.data]),
          "median_angle_to_mean_deg": result}, indent=2))
     return 0
 

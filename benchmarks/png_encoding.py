@@ -20,6 +20,7 @@ import cv2
 import numpy as np
 
 import vistac_sim.generate.configuration as configuration
+from vistac.provenance import provenance
 from vistac_sim.effects import build_pipeline
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.rigs import RigCache
@@ -77,6 +78,7 @@ def main() -> None:
                 assert np.array_equal(back[..., ::-1], im), (preset, name)
         res["presets"][preset] = {e: {"cpu_ms": statistics.median(ms[e]), "kib": kib[e]}
                                   for e in ENCODINGS}
+    res["provenance"] = provenance()
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "png_encoding.json").write_text(json.dumps(res, indent=2) + "\n")
     lines = [f"# PNG encodings (227 px frames, {args.n} per preset, median of {args.rounds} "

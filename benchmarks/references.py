@@ -30,15 +30,13 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from learnbench import mean_entry, save, table
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from learnbench import machine, mean_entry, save, table  # noqa: E402
-
-from vistac.dataset import FINGERS, open_dataset  # noqa: E402
-from vistac_learn.data.fingertips import read_rgb  # noqa: E402
-from vistac_learn.evaluate import geometric, pinch  # noqa: E402
-from vistac_learn.evaluate.references import noise_floor  # noqa: E402
-from vistac_learn.metrics.scoring import score  # noqa: E402
+from vistac.dataset import FINGERS, open_dataset
+from vistac_learn.data.fingertips import read_rgb
+from vistac_learn.evaluate import geometric, pinch
+from vistac_learn.evaluate.references import noise_floor
+from vistac_learn.metrics.scoring import score
 
 EXTRA = (("ms / image (wall)", "ms_per_image"), ("CPU ms / image", "cpu_ms_per_image"),
          ("fingers not found", "failures"))
@@ -151,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     result = {"data": str(args.data.resolve()), "fingerprint": t.fingerprint(),
               "split": args.split, "n_configs": int(len(rows)), "friction": mu,
               "noise_std": args.noise_std, "jpeg_quality": args.jpeg_quality,
-              "seed": args.seed, "machine": machine(), "entries": entries}
+              "seed": args.seed, "entries": entries}
     gen = t.manifest.get("config") or {}
     made = (f"`vistac generate --n {gen.get('n')} --noise {(gen.get('effects') or {}).get('noise')}"
             f" --seed {gen.get('seed')} --split-by {(gen.get('split') or {}).get('by')}`")
@@ -172,7 +170,7 @@ def main(argv: list[str] | None = None) -> int:
         "",
         family_table(entries),
     ])
-    save(args.out, args.name, result, md)
+    save(args.out, args.name, result, md, datasets=(args.data,))
     return 0
 
 

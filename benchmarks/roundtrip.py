@@ -22,6 +22,7 @@ import pandas as pd
 
 from vistac.dataset.ingest.config import IngestCfg, IngestSources
 from vistac.dataset.ingest.run import ingest
+from vistac.provenance import provenance
 from vistac_sim.generate.run import generate
 
 FINGERS = ("index", "thumb")
@@ -102,7 +103,8 @@ def main(argv: list[str] | None = None) -> None:
         if args.keep is None:
             shutil.rmtree(root, ignore_errors=True)
     if args.json:
-        args.json.write_text(json.dumps(results, indent=2) + "\n")
+        args.json.write_text(json.dumps({"results": results, "provenance": provenance()},
+                                        indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -31,19 +31,16 @@ import dataclasses
 import json
 import resource
 import shutil
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+from learnbench import ensure_dataset, headline_data, save
+from mesh_collection import fetch_pybullet
 
-from learnbench import ensure_dataset, headline_data, machine, save  # noqa: E402
-from mesh_collection import fetch_pybullet  # noqa: E402
-
-import vistac  # noqa: E402
-from vistac_learn.experiments.sim2real import Sim2RealCfg  # noqa: E402
-from vistac_sim.assets import EXAMPLE_MESHES  # noqa: E402
-from vistac_sim.objects.config import ObjectsCfg  # noqa: E402
+import vistac
+from vistac_learn.experiments.sim2real import Sim2RealCfg
+from vistac_sim.assets import EXAMPLE_MESHES
+from vistac_sim.objects.config import ObjectsCfg
 
 # The target's objects: the convex meshes of the collection (no decomposition needed) and three
 # scans whose CoACD decomposition is cheap enough to make once (it is cached on disk); the other
@@ -160,14 +157,14 @@ def main() -> None:
               "commands": commands, "fractions": a.fractions, "seeds": a.seeds,
               "epochs": a.epochs, "results": results, **nums,
               "wall_s": time.perf_counter() - t0, "data_wall_s": data_s,
-              "cpu_s": cpu_s() - c0, "machine": machine()}
+              "cpu_s": cpu_s() - c0}
     md = ("# sim2real, photo-like real side\n\n```bash\n" + "\n".join(commands) + "\n```\n\n"
           f"Real side: {man['counts']['configs']} configurations of {man['counts']['objects']} "
           f"meshes (split {man['counts']['split']}). This invocation: "
           f"{result['wall_s']:.0f} s wall, {result['cpu_s']:.0f} s CPU (a resumed run counts "
           "only its own part).\n\n" + "\n\n".join(lines) + "\n\n"
           + report.split("\n", 1)[1].replace("![sim2real](sim2real.png)", "").strip())
-    save(a.results, a.name, result, md)
+    save(a.results, a.name, result, md, datasets=(sim, real))
     shutil.copyfile(a.out / "s2r" / "sim2real.png", a.results / f"{a.name}.png")
 
 

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pandas as pd
 
+from vistac.provenance import provenance
+
 
 def error_column(panel: str) -> str:
     return "p95_box_error_mm" if panel == "image size" else "error_deg"
@@ -39,7 +41,8 @@ def write_report(rows: list[dict], out: Path, meta: dict) -> None:
     out.mkdir(parents=True, exist_ok=True)
     df = mark_fronts(pd.DataFrame(rows))
     df.to_csv(out / "sim_fidelity.csv", index=False, float_format="%.6g")
-    (out / "sim_fidelity.json").write_text(json.dumps(meta, indent=2) + "\n")
+    (out / "sim_fidelity.json").write_text(json.dumps({**meta, "provenance": provenance()},
+                                                      indent=2) + "\n")
     lines = ["# Simulator accuracy against time", "",
              f"{meta['configs']} grasp configurations (of `--n {meta['n']}`, seed {meta['seed']}), "
              f"defaults {meta['defaults']}; run time {meta['wall_s']:.0f} s. Command: "

@@ -1,7 +1,7 @@
 """The memory estimate that refuses an oversized `vistac train --size`, against measured memory.
 
 For each (model, view, --size, --batch-size), a fresh Python process builds the run's model
-(`vistac_learn.train.config.build_model`), takes its resident memory, then runs what a run
+(`vistac_learn.train.build.build_model`), takes its resident memory, then runs what a run
 does with the most memory: one training step (AdamW, forward, backward, step) on a random batch
 and one scoring pass (no gradients) over ``eval_batch_size`` samples, and reports the growth of
 its peak resident memory (``ru_maxrss``) over the model's. That growth is compared with
@@ -20,6 +20,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from vistac.provenance import provenance
+
 CASES = [  # model, variant, finger, size, batch size, eval batch size
     ("tipnet", "tip", "both", 48, 32, 256),
     ("tipnet", "tip", "both", 96, 32, 256),
@@ -31,7 +33,8 @@ CASES = [  # model, variant, finger, size, batch size, eval batch size
 
 CHILD = r"""
 import json, resource, sys, torch
-from vistac_learn.train.config import build_model, build_view, protocol_cfg
+from vistac_learn.train.build import build_model, build_view
+from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.memory import estimate_bytes
 model_name, variant, finger, size, batch, eval_batch = sys.argv[1:]
 size, batch, eval_batch = int(size), int(batch), int(eval_batch)
@@ -87,8 +90,8 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     meta = {"python": platform.python_version(), "machine": platform.machine(),
             "note": "shared 2-core machine; peak resident memory over the built model's"}
-    (out / "train_memory.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=2)
-                                           + "\n")
+    (out / "train_memory.json").write_text(json.dumps(
+        {"meta": meta, "rows": rows, "provenance": provenance()}, indent=2) + "\n")
     lines = ["# `vistac train` memory: estimate against measured peak", "",
              "One training step and one scoring pass per row, each in a fresh process "
              "(benchmarks/train_memory.py); MiB of peak resident memory above the built model's.",
