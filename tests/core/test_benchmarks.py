@@ -99,3 +99,12 @@ def test_every_named_results_file_exists():
 
 def test_no_results_file_carries_a_version_suffix():
     assert [p.name for p in RESULTS.rglob("*") if re.search(r"_v\d+(\W|_|$)", p.name)] == []
+
+
+def test_relative_links_of_the_readme_the_index_and_the_changelog_resolve():
+    broken = []
+    for page in (ROOT / "README.md", BENCH / "README.md", ROOT / "CHANGELOG.md"):
+        for target in re.findall(r"\]\(([^)#\s]+)(?:#[^)]*)?\)", page.read_text()):
+            if not re.match(r"[a-z]+://", target) and not (page.parent / target).exists():
+                broken.append(f"{page.relative_to(ROOT)}: {target}")
+    assert broken == []
