@@ -90,7 +90,7 @@ def default_cache_dir() -> Path:
     return Path(root) / "coacd"
 
 
-FIDELITY_SAMPLES = 4000
+FIDELITY_SAMPLES = 2000
 """Points sampled on each side (collision pieces, labelled mesh) to measure their distance."""
 
 
@@ -145,20 +145,37 @@ def _sample(mesh: trimesh.Trimesh, rng: np.random.Generator,
     return t[:, 0] + u[:, None] * (t[:, 1] - t[:, 0]) + v[:, None] * (t[:, 2] - t[:, 0])
 
 
+RESOLUTION = 1e-4
+"""Distances below this fraction of the size are not refined (the bound stands)."""
+BRUTE_FORCE = 250_000
+"""Up to this many point-face pairs, every point is measured against every face."""
+
+
 def _max_distance(points: np.ndarray, tri: np.ndarray) -> float:
     """Exact largest distance of the points to the triangles `tri` (F, 3, 3).
 
-    Each point's distance is at most that to the nearest of the 16 faces with the nearest
-    centres (k-d tree, exact point-triangle distances, in one batch); where the true closest
-    face may be another, the exact distance over the faces whose box lies within that bound is
-    computed, in order of falling bound, until no bound left can beat the largest exact
-    distance."""
+    Few points and faces are measured all against all. Otherwise each point's distance is at
+    most that to the nearest of the 16 faces with the nearest centres (k-d tree, exact
+    point-triangle distances, in one batch); where the true closest face may be another, the
+    exact distance over the faces whose box lies within that bound is computed, in order of
+    falling bound, until no bound left can beat the largest exact distance (to `RESOLUTION`
+    of the size).
+    """
     from scipy.spatial import cKDTree
 
     from vistac_sim.physics.normals import closest_point_on_triangles
 
     if len(points) == 0:
         return 0.0
+    if len(points) * len(tri) <= BRUTE_FORCE:  # every point against every face, in chunks
+        step = max(1, BRUTE_FORCE // 8 // len(tri))
+        best = 0.0
+        for i in range(0, len(points), step):
+            p = np.repeat(points[i:i + step], len(tri), axis=0)
+            q = closest_point_on_triangles(p, np.tile(tri, (len(p) // len(tri), 1, 1)))
+            d = np.sqrt(((q - p) ** 2).sum(1)).reshape(-1, len(tri)).min(axis=1)
+            best = max(best, float(d.max()))
+        return best
     k = min(16, len(tri))
     _, near = cKDTree(tri.mean(axis=1)).query(points, k=k)
     near = near.reshape(len(points), k)
@@ -166,7 +183,7 @@ def _max_distance(points: np.ndarray, tri: np.ndarray) -> float:
     q = closest_point_on_triangles(rep, tri[near.ravel()])
     bound = np.sqrt(((q - rep) ** 2).sum(1)).reshape(-1, k).min(axis=1)
     lo, hi = tri.min(axis=1), tri.max(axis=1)
-    best, slack = 0.0, 1e-9 * float((hi.max(axis=0) - lo.min(axis=0)).max())
+    best, slack = 0.0, RESOLUTION * float((hi.max(axis=0) - lo.min(axis=0)).max())
     for k in np.argsort(-bound):
         b, p = float(bound[k]), points[k]
         if b <= best + slack:

@@ -128,10 +128,16 @@ def knot(size: float = 0.05, tube: float = 0.006, samples: int = 160) -> tuple[n
     return verts, faces
 
 
+def dense_sphere(diameter: float = 0.05, subdivisions: int = 7) -> tuple[np.ndarray, np.ndarray]:
+    """A closed sphere of 20 * 4**subdivisions faces (327,680 at 7): the cost of a dense scan."""
+    s = trimesh.creation.icosphere(subdivisions=subdivisions)
+    return s.vertices * diameter / 2, s.faces
+
+
 @dataclass(frozen=True)
 class StressMesh:
     """A hard mesh: its builder, the file suffix it is written as, the footprint (m) it is
-    pressed at, and whether its collision shape needs CoACD (slow: seconds to a minute)."""
+    pressed at, and whether it is slow to build (CoACD, or a dense mesh: seconds to minutes)."""
 
     build: Callable[[], tuple[np.ndarray, np.ndarray]]
     footprint: float
@@ -151,4 +157,5 @@ STRESS_MESHES: dict[str, StressMesh] = {
     "comb_2mm_slots": StressMesh(comb, 0.045),
     "open_scan": StressMesh(open_scan, 0.05, ".ply", decomposed=True),
     "knot": StressMesh(knot, 0.05, decomposed=True),
+    "sphere_327k_faces": StressMesh(dense_sphere, 0.05, ".ply", decomposed=True),
 }
