@@ -78,6 +78,7 @@ def generate(cfg: GenerateCfg, out: str | Path, *, workers: int = 0, resume: boo
 
     from vistac.dataset.files import check_out_dir
     from vistac.engine import EngineCfg, ForkServer, check_workers
+    from vistac.fork_pool import spawn_problem
     from vistac_sim.generate import WORKER_MODULES
     from vistac_sim.generate.config import GenerateCfg
 
@@ -98,6 +99,10 @@ def generate(cfg: GenerateCfg, out: str | Path, *, workers: int = 0, resume: boo
     engine = engine or EngineCfg()
     out = check_out_dir(out)
     forks = engine.engine == "local" and workers > 1
+    problem = spawn_problem() if forks else None
+    if problem is not None:  # e.g. an embedded interpreter: the work is done here instead
+        print(f"note: workers: {problem}; generating in this process", file=sys.stderr)
+        workers, forks = 1, False
     # started first, the fork server's imports run beside this process's own, below
     with ForkServer(WORKER_MODULES) if forks else nullcontext() as server:
         from vistac_sim.generate.run import generate as run_generation

@@ -193,6 +193,20 @@ class PoolRunner(Runner):
                     raise exc from RemoteTraceback(text)
 
 
+def spawn_problem() -> str | None:
+    """Why this interpreter cannot start worker processes, or None: the program "spawn" runs
+    (`sys.executable`, or what `multiprocessing.set_executable` set) must be an executable
+    file, which an embedding application's interpreter need not have."""
+    from multiprocessing import spawn
+
+    exe = spawn.get_executable()
+    exe = os.fsdecode(exe) if exe else ""
+    if not exe or not os.path.isfile(exe) or not os.access(exe, os.X_OK):
+        return (f"this interpreter cannot start worker processes ({exe or 'its program'} is "
+                "not an executable file)")
+    return None
+
+
 @contextlib.contextmanager
 def _without_main() -> Iterator[None]:
     """While a process is started by "spawn": a bare ``__main__`` module in place of this

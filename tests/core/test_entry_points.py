@@ -67,3 +67,22 @@ def test_generate_with_workers_from_a_script_on_stdin(tmp_path):
     assert res.returncode == 0 and "Traceback" not in res.stderr, res.stderr[-2000:]
     assert res.stdout.strip() == "4"
     assert len(pd.read_parquet(Path(out) / "configs.parquet")) == 4
+
+
+def test_an_interpreter_that_cannot_start_workers_generates_in_process(tmp_path):
+    """An embedding application whose interpreter cannot be started again (what "spawn" would
+    run is not an executable file): the default workers fall back to this process, with a note
+    on stderr, instead of a traceback."""
+    out = tmp_path / "d"
+    script = (
+        "import multiprocessing\nmultiprocessing.set_executable('/nonexistent/host-app')\n"
+        "import vistac\nfrom vistac.config import apply\n"
+        "cfg = apply(vistac.GenerateCfg(n=2, repeats=1),\n"
+        "            {'objects': {'n_objects': 1}, 'render': {'image_size': 32}})\n"
+        f"print(len(vistac.generate(cfg, {str(out)!r})))\n")
+    res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                         timeout=300, cwd=tmp_path)
+    assert res.returncode == 0 and "Traceback" not in res.stderr, res.stderr[-2000:]
+    assert res.stdout.strip() == "2"
+    assert "note: workers: this interpreter cannot start worker processes (/nonexistent/" \
+        "host-app is not an executable file); generating in this process" in res.stderr
