@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from vistac.errors import UserError, shorten
@@ -71,6 +72,9 @@ def build_parser(argv: list[str]) -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the `vistac` command; returns its exit status (2 for bad input)."""
     argv = sys.argv[1:] if argv is None else argv
+    # OpenCV's own warnings (e.g. "can not handle images with 32-bit samples" before an image
+    # it cannot read) would print beside the one line that says what is wrong
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
     if not all(a.isascii() for a in argv):  # before anything is read or written under a name
         from vistac.dataset.files import locale_problem
 

@@ -85,3 +85,22 @@ def test_ingest_refuses_a_file_name_that_is_not_utf8(env, tmp_path, capsys):
     (rec / f"{latin1}.csv").rename(rec / "cafe.csv")
     (img / f"{latin1}.png").rename(img / "cafe.png")
     assert main(argv) == 0
+
+
+def test_a_texture_opencv_cannot_read_is_one_line(tmp_path):
+    """A 32-bit float TIFF among --textures: OpenCV's warning used to print beside the error."""
+    import cv2
+    import numpy as np
+
+    textures = tmp_path / "textures"
+    textures.mkdir()
+    cv2.imwrite(str(textures / "float.tiff"), np.random.default_rng(0).random((16, 16, 3),
+                                                                               np.float32))
+    out = tmp_path / "out"
+    argv = [VISTAC, *GEN_OK.format(out=out).split(), "--preset", "photo", "--textures",
+            str(textures)]
+    res = subprocess.run(argv, capture_output=True, text=True, timeout=300)
+    err = res.stderr.strip()
+    assert res.returncode == 2 and err.count("\n") == 0 and "Traceback" not in err, err
+    assert f"--textures {textures}: no readable image" in err, err
+    assert not out.exists()
