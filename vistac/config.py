@@ -16,8 +16,9 @@ serves everything:
 - `apply` updates a config tree from a nested, partial mapping (a scene file, presets, CLI
   flags); its errors name the source and the dotted key (``scene.yaml: effects.fts3.hysteresis:
   ...``) or the flag (``--friction: ...``);
-- `add_options` declares argparse options from the fields (type, default, choices, help) and
-  `option_values` collects the parsed flags into such a mapping;
+- `add_options` declares argparse options from the fields (type, default, choices, help; with
+  `HelpFormatter`, `--help` shows each option's default and range) and `option_values`
+  collects the parsed flags into such a mapping;
 - `to_dict` gives the JSON-able tree written into manifests and run folders.
 
 Every number must be finite: nan and inf are refused for every float field of every config.
