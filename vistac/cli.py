@@ -1,10 +1,11 @@
 """The `vistac` console command: a thin dispatcher over the sub-commands of both packages.
 
 Every sub-command lives in a command module that defines ``add_command(sub)`` (its options,
-declared from its config's fields where it has one) and a small handler turning the parsed,
-validated config into work. Only the chosen command's module is imported (so `vistac generate`
-does not pay for importing torch, nor `vistac train` for MuJoCo); `vistac --help` lists them all.
-A new sub-command is one line in `COMMANDS` plus its module.
+each a field of a typed config, so that `--help` shows its default and range; progress on
+stderr switched off by `--no-progress`, `vistac.progress`) and a small handler turning the
+parsed, validated config into work. Only the chosen command's module is imported (so
+`vistac generate` does not pay for importing torch, nor `vistac train` for MuJoCo);
+`vistac --help` lists them all. A new sub-command is one line in `COMMANDS` plus its module.
 
 Bad input never ends in a traceback: a malformed command line, a `UserError` (an option, file or
 row its check refused) and an `OSError` (a full disk, a folder that cannot be written) are
