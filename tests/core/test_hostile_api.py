@@ -124,6 +124,7 @@ def test_values_beyond_finite_arithmetic_are_refused(case, env, capsys):
 
 
 # ------------------------------------------------------------------ labels checked when stored
+@pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")  # the point
 def test_labels_without_direction_are_never_declared_written(env, capsys):
     """The engine given a config changed behind its checks (noise 1e300: every force overflows
     to a label (0, 0)) stops before the manifest, naming the table and row; nothing says
