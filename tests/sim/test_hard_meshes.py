@@ -82,13 +82,13 @@ def test_a_collision_shape_beyond_tolerance_is_skipped_with_its_reason(tmp_path,
     trimesh.creation.icosphere(subdivisions=3).export(path)
 
     monkeypatch.setattr(library, "convex_decomposition",
-                        lambda mesh, cache_dir, threshold=0.05: [_grown(mesh, 1.05)])
+                        lambda mesh, cache_dir, threshold=0.05: [_grown(mesh, 1.12)])
     spec = ObjectSpec("ball", "mesh", 0, 0.05, 0.0, str(path))
-    with pytest.raises(UserError, match=r"ball.stl: its collision shape lies 1\.\d+ mm from the "
-                       r"mesh \(2\.\d % of the footprint; objects.shape_tolerance 2 %\)"):
+    with pytest.raises(UserError, match=r"ball.stl: its collision shape lies 3\.\d+ mm from the "
+                       r"mesh \(6\.\d % of the footprint; objects.shape_tolerance 5 %\)"):
         build_object(spec, 0.012, cache_dir=tmp_path)
-    obj = build_object(spec, 0.012, cache_dir=tmp_path, shape_tolerance=0.05)
-    assert any("collision shape: 1 convex piece(s), within 1.2" in n
+    obj = build_object(spec, 0.012, cache_dir=tmp_path, shape_tolerance=0.1)
+    assert any("collision shape: 1 convex piece(s), within 2.99" in n
                for n in obj.mesh.metadata["repairs"])
 
 
@@ -223,9 +223,14 @@ def test_hard_meshes_give_true_labels_with_both_fingers_in_view(name, friction, 
 @pytest.mark.parametrize("friction", [0.0, 0.8])
 @pytest.mark.parametrize("name", SLOW)
 def test_decomposed_hard_meshes_give_true_labels(name, friction, tmp_path_factory):
-    """The comb, the open scan and the knot go through CoACD (seconds to a minute each)."""
+    """The open scan and the knot go through CoACD (minutes each), the 327 k-face sphere is
+    large: labels as above, or a named skip (a collision shape too far from the mesh)."""
     folder = tmp_path_factory.mktemp(name)
-    rig, cfg, kept = _press_stress_mesh(name, friction, folder)
+    try:
+        rig, cfg, kept = _press_stress_mesh(name, friction, folder)
+    except UserError as exc:
+        assert "its collision shape lies" in str(exc) and name != "sphere_327k_faces"
+        return
     _assert_labels(name, friction, rig, cfg, kept)
 
 

@@ -33,7 +33,7 @@ class ObjectsCfg(Config):
                               "their height")
     min_wall: float = param(0.001, gt=0, help="m, thinnest wall a procedural outline may have")
     shape_tolerance: float = param(
-        0.02, gt=0, le=1,
+        0.05, gt=0, le=1,
         help="farthest a mesh's convex collision pieces may lie from the mesh itself, as a "
         "fraction of the footprint (farther: decomposed again, finer, else the mesh is skipped)")
     strict: bool = param(False, help="a bad mesh in a folder aborts the run instead of being "

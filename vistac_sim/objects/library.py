@@ -79,7 +79,7 @@ mesh (the first uses CoACD's default, 0.05)."""
 
 def build_object(spec: ObjectSpec, finger_height: float, min_wall: float = 0.001,
                  cache_dir: Path | None = None, min_height: float = 0.0005,
-                 shape_tolerance: float = 0.02) -> BuiltObject:
+                 shape_tolerance: float = 0.05) -> BuiltObject:
     """Build the meshes, collision pieces and press-height section of one object.
 
     A mesh's section is the section of its collision pieces (what the fingers will touch). The
