@@ -40,6 +40,7 @@ from vistac.provenance import provenance
 from vistac_sim.generate.config import GenerateCfg
 from vistac_sim.generate.rigs import NoValidGrasp, ObjectRig, draw_grasp
 from vistac_sim.geometry import angle_deg
+from vistac_sim.objects.decomposition import default_cache_dir
 from vistac_sim.objects.library import (
     ObjectSpec,
     build_object,
@@ -86,7 +87,7 @@ def press_mesh(name: str, friction: float, draws: int, folder: Path) -> dict:
         cfg = apply(GenerateCfg(), {"physics": {"friction": friction}, "objects": {
             "paths": [str(path)], "footprint": [m.footprint, m.footprint]}})
         obj = build_object(ObjectSpec(name, "mesh", 0, m.footprint, 0.0, str(path)),
-                           cfg.hand.height, cache_dir=folder / "cache")
+                           cfg.hand.height, cache_dir=default_cache_dir())
         rig = ObjectRig(obj, cfg, render=False)
     except UserError as exc:
         row["skip"] = str(exc).replace(str(folder) + "/", "")
@@ -178,9 +179,9 @@ def two_face(draws: int) -> dict:
 
 
 def markdown(out: dict) -> str:
-    lines = ["| mesh | friction | kept / draws | rejected draws (or skip) | label to normal, "
-             "median / p95 deg | sticking: to closing axis, median / p95 deg | "
-             "CPU per kept, x box |", "|---|---|---|---|---|---|---|"]
+    lines = ["| mesh | friction | kept / draws | rejected draws (or skip) | force to mesh normal, "
+             "median / p95 deg (friction 0: the label's error) | sticking: force to closing "
+             "axis, median / p95 deg | CPU per kept, x box |", "|---|---|---|---|---|---|---|"]
     ref = out["reference_cpu_per_kept_s"]
     for r in out["meshes"]:
         if r["skip"]:
@@ -191,7 +192,7 @@ def markdown(out: dict) -> str:
         stick = r.get("label_to_closing_axis_deg")
         lines.append(
             f"| {r['mesh']} | {r['friction']:g} | {r['kept']} / {r['draws']} | {reasons} | "
-            + (f"{lab[0]:.2f} / {lab[1]:.2f}" if lab else "") + " | "
+            + (f"{lab[0]:.3f} / {lab[1]:.3f}" if lab else "") + " | "
             + (f"{stick[0]:.2f} / {stick[1]:.2f}" if stick and r["friction"] >= 10 else "")
             + f" | {r['cpu_per_kept_s'] / ref:.1f} |")
     lines += ["", "| physics setting | presses | refused | error median / p95 / max deg |",
@@ -220,8 +221,14 @@ def main() -> None:
     ap.add_argument("--meshes", nargs="+", default=sorted(STRESS_MESHES))
     ap.add_argument("--results", type=Path, default=RESULTS)
     ap.add_argument("--name", default="hard_meshes", help="stem of the result files")
+    ap.add_argument("--table-only", action="store_true",
+                    help="rewrite NAME.md from NAME.json, running nothing")
     args = ap.parse_args()
     warnings.simplefilter("ignore")
+    if args.table_only:
+        out = json.loads((args.results / f"{args.name}.json").read_text())
+        (args.results / f"{args.name}.md").write_text(markdown(out))
+        return
     out: dict = {"provenance": provenance(), "meshes": [], "settings": []}
     out["reference_cpu_per_kept_s"] = reference_cost(args.draws)
     if "meshes" in args.parts:
