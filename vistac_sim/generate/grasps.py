@@ -52,6 +52,8 @@ if TYPE_CHECKING:
 CLEARANCE_LEVELS = (-0.95, -0.85, -0.7, -0.5, -0.25, 0.25, 0.5, 0.7, 0.85, 0.95)
 ANTIPODAL_TRIES = 200
 """Index targets tried per draw for an antipodal pair (geometry only, ~30 us each)."""
+REACHABLE_TRIES = 20
+"""Antipodal pairs tried per draw for one whose fingers fit (~0.1 ms each)."""
 
 
 def cone_limit_deg(friction: float, tolerance_deg: float) -> float:
@@ -224,20 +226,46 @@ class OutlineSampler:
         yaw = float(rng.uniform(-np.pi, np.pi))
         xy = rng.uniform(-0.01, 0.01, 2)
         if self.antipodal_deg is not None:
-            p_i, n_i, close, p_t, n_t = self.antipodal(rng, self.antipodal_deg)
-        else:
-            p_i, n_i = self._point(rng)
-            close = self._turned(rng, n_i, g.closing_spread_deg)  # the index's push
-            p_t, n_t = self.far_crossing(p_i, close)
-            off = _off_deg(close, n_t)
-            if off > g.max_push_angle_deg:
-                raise RejectedSample("no_opposing_thumb", f"the thumb's surface is {off:.0f} deg "
-                                     f"off the closing axis (limit {g.max_push_angle_deg:g})")
+            return to_world(yaw, xy, *self._reachable_antipodal(rng))
+        p_i, n_i = self._point(rng)
+        close = self._turned(rng, n_i, g.closing_spread_deg)  # the index's push
+        p_t, n_t = self.far_crossing(p_i, close)
+        off = _off_deg(close, n_t)
+        if off > g.max_push_angle_deg:
+            raise RejectedSample("no_opposing_thumb", f"the thumb's surface is {off:.0f} deg "
+                                 f"off the closing axis (limit {g.max_push_angle_deg:g})")
         target, normal = [p_i, p_t], [n_i, n_t]
         approach = [self._turned(rng, n, g.approach_spread_deg) for n in normal]
         push = [close, [-close[0], -close[1]]]
         self._check_axes(cap_starts(target, normal, push, h.tip_radius, h.standoff), approach)
         return to_world(yaw, xy, target, normal, approach, push)
+
+    def _reachable_antipodal(self, rng: np.random.Generator) -> tuple[list, ...]:
+        """An antipodal pair whose fingers fit (`sample` in a narrow friction cone): a pair on
+        which a finger would start inside the object, or the fingers overlap, is drawn again, up
+        to `REACHABLE_TRIES` pairs, before the draw is rejected (where antipodal pairs are rare,
+        as on a scan or a knot, the fingers cannot reach most of them).
+
+        Returns:
+            targets, normals, approaches and pushes (2 x 2 nested lists each, object frame).
+        """
+        for _ in range(REACHABLE_TRIES - 1):
+            try:
+                return self._antipodal_fit(rng)
+            except RejectedSample as exc:
+                if exc.reason not in ("unreachable", "fingers_overlap"):
+                    raise
+        return self._antipodal_fit(rng)
+
+    def _antipodal_fit(self, rng: np.random.Generator) -> tuple[list, ...]:
+        """One antipodal pair with its finger axes, checked (`_reachable_antipodal`)."""
+        g, h = self.cfg.grasp, self.cfg.hand
+        p_i, n_i, close, p_t, n_t = self.antipodal(rng, self.antipodal_deg)
+        target, normal = [p_i, p_t], [n_i, n_t]
+        approach = [self._turned(rng, n, g.approach_spread_deg) for n in normal]
+        push = [close, [-close[0], -close[1]]]
+        self._check_axes(cap_starts(target, normal, push, h.tip_radius, h.standoff), approach)
+        return target, normal, approach, push
 
 
 def _off_deg(axis, normal) -> float:
