@@ -335,8 +335,8 @@ def sim2real(cfg: Sim2RealCfg, base: TrainCfg, *, max_cells: int | None = None,
     check_out_dir(cfg.out)
     _check_max_cells(max_cells)
     base = dataclasses.replace(base, data=cfg.real, out=str(Path(cfg.out) / "runs"))
-    for data in (cfg.sim, cfg.real):
-        _notes(check_data(dataclasses.replace(base, data=data), progress), progress)
+    for run in (S.pretrain_cfg(cfg, base), base):
+        _notes(check_data(run, progress), progress)
     rows = S.run_sim2real(cfg, base, max_cells=max_cells, progress=progress)
     return Report(Path(cfg.out), rows)
 

@@ -224,3 +224,38 @@ def test_a_cell_whose_pretrained_run_diverged_is_skipped(tmp_path):
     assert [(r["cell"], r["status"]) for r in rows] == [
         ("b", "skipped"), ("a", "diverged"), ("c", "ok"), ("d", "ok")]
     assert [r["cell"] for r in _rows(tmp_path / "cells.csv")] == ["b", "a", "c", "d"]
+
+
+def test_sim2real_pretraining_has_its_own_epochs_and_rotations(tmp_path):
+    """--sim-epochs / --sim-rotations / --sim-n-rotations set the sim-only runs alone (a large
+    simulated dataset at one random rotation, the real runs at the study's 20 fixed ones)."""
+    from vistac.errors import UserError
+    from vistac_learn.experiments.sim2real import Sim2RealCfg, make_cells
+    from vistac_learn.train.config import protocol_cfg
+
+    base = protocol_cfg("study", "", "", epochs=20)
+    cfg = Sim2RealCfg(sim=str(tmp_path / "sim"), real=str(tmp_path / "real"),
+                      out=str(tmp_path / "x"), fractions=(0.5,), seeds=1, sim_epochs=7,
+                      sim_rotations="random", sim_n_rotations=1)
+    cells = {c.key: c.job.train for c in make_cells(cfg, base)}
+    sim = cells["sim-only/0/0"]
+    assert (sim.epochs, sim.rotations, sim.n_rotations, sim.data) == (7, "random", 1, cfg.sim)
+    for key in ("scratch/0.5/0", "finetune/0.5/0"):
+        assert (cells[key].epochs, cells[key].rotations, cells[key].n_rotations) == (
+            20, "fixed", 20)
+    plain = Sim2RealCfg(sim=cfg.sim, real=cfg.real, out=cfg.out, fractions=(0.5,), seeds=1)
+    assert make_cells(plain, base)[0].job.train.epochs == 20  # default: the runs' own
+    pinch = protocol_cfg("default", "", "")
+    bad = Sim2RealCfg(sim=cfg.sim, real=cfg.real, out=cfg.out, sim_rotations="random")
+    with pytest.raises(UserError, match="^--sim-rotations: the pinch view"):
+        make_cells(bad, pinch)
+
+
+def test_sim2real_pretraining_options_on_the_command_line(data, tmp_path, capsys):
+    argv = ["experiment", "sim2real", "--sim", str(data["sim"]), "--real", str(data["real"]),
+            "--out", str(tmp_path / "out"), "--sim-rotations", "random", "--epochs", "1"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("--sim-rotations: the pinch view turns every crop to its finger, so "
+                        "rotations change nothing; choose none"), err
+    assert not (tmp_path / "out").exists()

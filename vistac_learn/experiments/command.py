@@ -61,7 +61,8 @@ def add_command(sub: argparse._SubParsersAction) -> None:
         "and the sim model fine-tuned (--init) on the same subset. All scored on --real's test "
         "split; mean +- std over seeds; the report states the domain gap.",
         formatter_class=HelpFormatter, allow_abbrev=False)
-    add_options(s, Sim2RealCfg, ("sim", "real", "fractions", "seeds", "freeze"))
+    add_options(s, Sim2RealCfg, ("sim", "real", "fractions", "seeds", "freeze", "sim_epochs",
+                                 "sim_rotations", "sim_n_rotations"))
     _common(s, Sim2RealCfg)
     s.set_defaults(func=_sim2real)
     n = kinds.add_parser(
@@ -107,7 +108,9 @@ def _sim2real(args: argparse.Namespace) -> int:
     from vistac_learn.experiments.sim2real import Sim2RealCfg
 
     cfg = make_cfg(Sim2RealCfg, sim=args.sim, real=args.real, out=args.out,
-                   fractions=tuple(args.fractions), seeds=args.seeds, freeze=args.freeze)
+                   fractions=tuple(args.fractions), seeds=args.seeds, freeze=args.freeze,
+                   sim_epochs=args.sim_epochs, sim_rotations=args.sim_rotations,
+                   sim_n_rotations=args.sim_n_rotations)
     res = sim2real(cfg, base_cfg(args, cfg.real), max_cells=_max_cells(args),
                    progress=progress_wanted(args))
     return _done(args.out, len(res.rows), cfg.seeds * (1 + 2 * len(cfg.fractions)))

@@ -4,7 +4,10 @@ Per seed, one model is trained on the simulated dataset (``sim-only``; scored on
 split as it is: the zero-shot row). Per fraction of the real training split and seed, a model is
 trained from scratch on that fraction (``scratch``) and the sim model is fine-tuned on the same
 fraction (``finetune``, `TrainCfg.init`; the same seed draws the same subset, see
-`subset_rows`). Every model is selected on the validation split of the dataset it trains on
+`subset_rows`). The sim-only runs may train for other epochs and rotations than the real ones
+(``--sim-epochs``, ``--sim-rotations``, ``--sim-n-rotations``): a large simulated dataset
+with one random rotation per sample and epoch, a study-sized real one with the study's 20 fixed
+rotations. Every model is selected on the validation split of the dataset it trains on
 and scored on the real test split, which never enters training or selection.
 
 Outputs in ``--out``: ``cells.csv`` (one row per trained model), ``results.csv`` (mean and std
@@ -23,6 +26,7 @@ from typing import Any
 from vistac.config import Config, ConfigError, param
 from vistac.errors import UserError
 from vistac.folder_lock import hold
+from vistac_learn.data.rotations import ROTATION_MODES
 from vistac_learn.experiments import cells as C
 from vistac_learn.train.config import FREEZE, TrainCfg
 from vistac_learn.train.job import JobCfg, JobResult, ScoreCfg
@@ -45,6 +49,13 @@ class Sim2RealCfg(Config):
     seeds: int = param(3, ge=1, le=1000, help="seeds per cell (0 .. N-1)")
     freeze: str = param("none", choices=FREEZE, help="fine-tuning: train everything (none) or "
                         "keep the pretrained feature layers fixed (features)")
+    sim_epochs: int | None = param(None, ge=1, le=100_000, help="epochs of the sim-only "
+                                   "(pretraining) runs (default: --epochs)")
+    sim_rotations: str | None = param(None, choices=ROTATION_MODES, help="rotations of the "
+                                      "sim-only runs (default: --rotations), e.g. random with "
+                                      "--sim-n-rotations 1 on a large simulated dataset")
+    sim_n_rotations: int | None = param(None, ge=1, le=360, help="samples per configuration "
+                                        "of the sim-only runs (default: --n-rotations)")
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -52,14 +63,35 @@ class Sim2RealCfg(Config):
             raise ConfigError("real", "must be another dataset than --sim")
 
 
+SIM_FIELDS = {"sim_epochs": "epochs", "sim_rotations": "rotations",
+              "sim_n_rotations": "n_rotations"}  # Sim2RealCfg field -> TrainCfg field
+
+
+def pretrain_cfg(cfg: Sim2RealCfg, base: TrainCfg) -> TrainCfg:
+    """The sim-only runs' settings: `base` on the simulated dataset, with the ``sim_*``
+    overrides of `cfg` (data, out and seed are set per cell).
+
+    Raises:
+        UserError: an override that the runs' settings do not allow, naming its option.
+    """
+    changes = {t: getattr(cfg, f) for f, t in SIM_FIELDS.items() if getattr(cfg, f) is not None}
+    try:
+        return dataclasses.replace(base, data=cfg.sim, train_fraction=1.0, init=None,
+                                   freeze="none", **changes)
+    except ConfigError as exc:
+        name = next((f for f, t in SIM_FIELDS.items() if t == exc.key and t in changes),
+                    exc.key)
+        raise UserError(f"--{name.replace('_', '-')}: {exc.reason}") from None
+
+
 def make_cells(cfg: Sim2RealCfg, base: TrainCfg) -> list[C.Cell]:
     """Every cell of the experiment, in report order (`base`'s data and out are replaced)."""
     out = Path(cfg.out).absolute() / "runs"
     real_test = ScoreCfg("real-test", "test", data=cfg.real)
+    pretrain = pretrain_cfg(cfg, base)
     cells = []
     for s in range(cfg.seeds):
-        run = dataclasses.replace(base, data=cfg.sim, out=str(out / "sim" / f"seed-{s}"), seed=s,
-                                  train_fraction=1.0, init=None, freeze="none")
+        run = dataclasses.replace(pretrain, out=str(out / "sim" / f"seed-{s}"), seed=s)
         cells.append(C.Cell(f"sim-only/0/{s}", {"arm": "sim-only", "fraction": 0.0, "seed": s},
                             JobCfg(run, (real_test, ScoreCfg("sim-test", "test")))))
     for f in sorted(cfg.fractions):
@@ -143,6 +175,7 @@ def report(cfg: Sim2RealCfg, base: TrainCfg, summary: list[dict], n_rows: int) -
         f"; seeds: {cfg.seeds}; fine-tuning freezes: {cfg.freeze}",
         f"- training: model {base.model}, view {base.variant}, fingers {base.finger}, "
         f"{base.epochs} epochs, batch {base.batch_size}, lr {base.lr:g}",
+        *_pretraining(cfg, base),
         f"- cells finished: {n_rows} of {n_total}", "",
         "Real test split; angle: median angle to the cone mean (deg, mean of the fingers; "
         "lower is better); mean ± std over seeds.", "",
@@ -197,6 +230,17 @@ def findings(cfg: Sim2RealCfg, summary: list[dict]) -> list[str]:
     if not out:
         out.append("No finding yet: too few cells have finished.")
     return out
+
+
+def _pretraining(cfg: Sim2RealCfg, base: TrainCfg) -> list[str]:
+    """A report line for the sim-only runs' own epochs and rotations (none when they have
+    the real runs')."""
+    if all(getattr(cfg, f) is None for f in SIM_FIELDS):
+        return []
+    sim = pretrain_cfg(cfg, base)
+    turns = ("no rotations" if sim.rotations == "none"
+             else f"{sim.rotations} rotations x {sim.n_rotations}")
+    return [f"- sim-only (pretraining) runs: {sim.epochs} epochs, {turns}"]
 
 
 def _part(fraction: float) -> str:
