@@ -4,8 +4,9 @@
 `SampleSet` renders each once (decode, edge image, rotation, crop) and keeps it
 (`vistac_learn.data.samples.RENDER_CACHE_BYTES`). This script trains the same run twice in one
 process, once with the cache switched off (budget 0) and once with it, and reports training
-samples per second per epoch (the first epoch renders in both; later epochs show the gain) and
-whether the two runs' losses agree bit for bit.
+samples per second per epoch (the first epoch renders in both; later epochs show the gain), the
+CPU seconds of each whole run (user + system of this process: on a shared, busy machine the
+figure to compare) and whether the two runs' losses agree bit for bit.
 
 Usage:
     .venv/bin/python benchmarks/study_speed.py            # 40 configurations x 20 rotations
@@ -19,7 +20,7 @@ import json
 import sys
 from pathlib import Path
 
-from learnbench import ensure_dataset
+from learnbench import cpu_s, ensure_dataset
 
 import vistac_learn.data.samples as samples
 from vistac.dataset import SplitCfg
@@ -57,16 +58,20 @@ def main(argv: list[str] | None = None) -> int:
         cfg = protocol_cfg("study", str(data), str(run), epochs=args.epochs, device="cpu",
                            train_fraction=(args.n_train - 0.5) / n_train,
                            cache_dir=str(work / "cache"))
+        c0 = cpu_s()
         train(cfg, progress=False)
+        cpu = cpu_s() - c0
         rows = epochs_of(run)
         n = args.n_train * cfg.n_rotations
         arms[name] = {"samples_per_s": [n / float(r["train_s"]) for r in rows],
-                      "train_loss": [float(r["train_loss"]) for r in rows]}
+                      "train_loss": [float(r["train_loss"]) for r in rows],
+                      "cpu_s": cpu, "samples_per_cpu_s": n * args.epochs / cpu}
     samples.RENDER_CACHE_BYTES = budget
     a, b = arms.values()
     same = a["train_loss"] == b["train_loss"]
     later = slice(1, None)
     ratio = (sum(b["samples_per_s"][later]) / sum(a["samples_per_s"][later]))
+    cpu_ratio = b["samples_per_cpu_s"] / a["samples_per_cpu_s"]
     lines = ["| epoch | " + " | ".join(f"{k} (samples/s)" for k in arms) + " |",
              "|---|---|---|"]
     for i in range(args.epochs):
@@ -74,9 +79,12 @@ def main(argv: list[str] | None = None) -> int:
                                                    for v in arms.values()) + " |")
     md = ("# Study protocol: training speed with rendered samples kept\n\n" + "\n".join(lines)
           + f"\n\nSchoeConv100-V3(FC160), edge-index, {args.n_train} configurations x 20 "
-          f"rotations, batch 5, CPU. Epochs 2+: {ratio:.2f}x the samples per second; losses "
+          f"rotations, batch 5, CPU. Epochs 2+: {ratio:.2f}x the samples per second; whole "
+          f"runs ({args.epochs} epochs with validation): {a['cpu_s']:.0f} and {b['cpu_s']:.0f} "
+          f"CPU s, {cpu_ratio:.2f}x the samples per CPU second; losses "
           f"{'identical' if same else 'DIFFER'} in every epoch.\n")
     result = {"provenance": provenance([data]), "arms": arms, "ratio_later_epochs": ratio,
+              "ratio_samples_per_cpu_s": cpu_ratio,
               "losses_identical": same}
     out = Path(args.results)
     (out / "study_speed.json").write_text(json.dumps(result, indent=2) + "\n")
