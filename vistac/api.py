@@ -312,7 +312,7 @@ def tune(base: TrainCfg, data: str | Path, out: str | Path, *, trials: int = 20,
 
 
 def sim2real(cfg: Sim2RealCfg, base: TrainCfg, *, max_cells: int | None = None,
-             progress: bool = False) -> Report:
+             progress: bool = False, runner: Any = None) -> Report:
     """Pretrain on simulation, fine-tune on fractions of real data (`Sim2RealCfg`).
 
     Args:
@@ -320,6 +320,8 @@ def sim2real(cfg: Sim2RealCfg, base: TrainCfg, *, max_cells: int | None = None,
         base: The runs' training settings (each cell sets its seed, fraction, init and splits).
         max_cells: Stop after this many new cells (call again to continue).
         progress: Progress bar on stderr.
+        runner: Runs the cells' training jobs (``run(jobs)`` yields (position, result); default
+            `vistac_learn.train.job.LocalRunner`, e.g. one that also times each job).
 
     Returns:
         The trained cells (rows of ``cells.csv``); the report is ``cfg.out/report.md``.
@@ -337,12 +339,12 @@ def sim2real(cfg: Sim2RealCfg, base: TrainCfg, *, max_cells: int | None = None,
     base = dataclasses.replace(base, data=cfg.real, out=str(Path(cfg.out) / "runs"))
     for run in (S.pretrain_cfg(cfg, base), base):
         _notes(check_data(run, progress), progress)
-    rows = S.run_sim2real(cfg, base, max_cells=max_cells, progress=progress)
+    rows = S.run_sim2real(cfg, base, max_cells=max_cells, progress=progress, runner=runner)
     return Report(Path(cfg.out), rows)
 
 
 def label_noise(cfg: LabelNoiseCfg, base: TrainCfg, *, max_cells: int | None = None,
-                progress: bool = False) -> Report:
+                progress: bool = False, runner: Any = None) -> Report:
     """Accuracy against the level of label noise (`LabelNoiseCfg`).
 
     Args:
@@ -350,6 +352,8 @@ def label_noise(cfg: LabelNoiseCfg, base: TrainCfg, *, max_cells: int | None = N
         base: The runs' training settings (each cell sets its seed).
         max_cells: Stop after this many new cells (call again to continue).
         progress: Progress bar on stderr.
+        runner: Runs the cells' training jobs (``run(jobs)`` yields (position, result); default
+            `vistac_learn.train.job.LocalRunner`, e.g. one that also times each job).
 
     Returns:
         The trained cells (rows of ``cells.csv``); the report is ``cfg.out/report.md``.
@@ -366,7 +370,7 @@ def label_noise(cfg: LabelNoiseCfg, base: TrainCfg, *, max_cells: int | None = N
     _check_max_cells(max_cells)
     base = dataclasses.replace(base, data=cfg.data, out=str(Path(cfg.out) / "runs"))
     _notes(check_data(base, progress), progress)
-    rows = L.run_label_noise(cfg, base, max_cells=max_cells, progress=progress)
+    rows = L.run_label_noise(cfg, base, max_cells=max_cells, progress=progress, runner=runner)
     return Report(Path(cfg.out), rows)
 
 

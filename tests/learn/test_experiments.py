@@ -259,3 +259,29 @@ def test_sim2real_pretraining_options_on_the_command_line(data, tmp_path, capsys
     assert err.endswith("--sim-rotations: the pinch view turns every crop to its finger, so "
                         "rotations change nothing; choose none"), err
     assert not (tmp_path / "out").exists()
+
+
+def test_the_experiments_api_takes_a_runner(data, tmp_path):
+    """`vistac.label_noise(..., runner=R)` and `vistac.sim2real(..., runner=R)` train their
+    cells through R (e.g. one that times each job)."""
+    import vistac
+    from vistac_learn.experiments.label_noise import LabelNoiseCfg
+    from vistac_learn.experiments.sim2real import Sim2RealCfg
+    from vistac_learn.train.job import LocalRunner, run_job
+
+    ran = []
+
+    def job(cfg):
+        ran.append(cfg.train.out)
+        return run_job(cfg)
+
+    base = vistac.TrainCfg.from_protocol("study", model="smallconv", epochs=1, n_rotations=2,
+                                         batch_size=4, device="cpu")
+    res = vistac.label_noise(LabelNoiseCfg(data=str(data["real"]), out=str(tmp_path / "ln"),
+                                           levels=(0.1,), seeds=1), base,
+                             runner=LocalRunner(job))
+    assert len(res.rows) == 1 and ran == [res.rows[0]["run"]]
+    res = vistac.sim2real(Sim2RealCfg(sim=str(data["sim"]), real=str(data["real"]),
+                                      out=str(tmp_path / "s2r"), fractions=(1.0,), seeds=1),
+                          base, runner=LocalRunner(job))
+    assert len(res.rows) == 3 and len(ran) == 4
