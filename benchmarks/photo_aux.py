@@ -8,8 +8,9 @@ script trains that run (the default recipe, no option) and scores it on the held
 configurations:
 
 1. with `vistac evaluate` (the recipe's mirrored view averaged in) on the photo renders and on
-   the clean renders of the same configurations, beside the run trained before without the
-   targets (issue 30: 1.72 / 2.01 deg on photo renders, 1.74 / 1.86 on clean ones);
+   the clean renders of the same configurations (``--score NAME=DATA``, the test split of each;
+   by default the training data's as "photo renders"), beside the run trained before without
+   the targets (issue 30: 1.72 / 2.01 deg on photo renders, 1.74 / 1.86 on clean ones);
 2. where the rest goes on the photo renders (`pinch_diagnosis.diagnose`, no mirrored view): the
    label composed from the model's geometry in crops around the located fingertips, then
    around the simulator's fingertips as drawn (`simulator_fingertips`: a perfect locator), then
@@ -17,14 +18,19 @@ configurations:
    (contact points, normals, crop tilts: the composition's floor). The steps' differences are
    the locator's share, the contact points' share and the rest of the model's.
 
+Before any of it, without a model: the simulator's contact points, normals and finger axes of
+the photo test split composed into the label through the located crops (`pinch_prior.composed`),
+beside the noise floor: that the new targets are right on photo images.
+
 Each step is skipped when its output is there: rerun the same command to resume (datasets,
-training, scores).
+training, scores). ``--no-train`` stops before training when the run is not finished (on a
+machine too busy to train) and writes what it has.
 
 Usage (D_PHOTO: ``vistac generate --n 3000 --noise 0.05 --seed 21 --split-by object --preset
-photo``, D the same without ``--preset``; both made here when missing; R is
-``vistac train --data D_PHOTO --out R``, trained here when missing or unfinished):
+photo``, made here when missing; D the same without ``--preset``; R is ``vistac train --data
+D_PHOTO --out R``, trained here when missing or unfinished):
 
-    python benchmarks/photo_aux.py --photo-data D_PHOTO --clean-data D --run R
+    python benchmarks/photo_aux.py --photo-data D_PHOTO --run R --score "clean renders=D"
 """
 
 from __future__ import annotations
@@ -34,14 +40,18 @@ import json
 import time
 from pathlib import Path
 
-from learnbench import cpu_s, ensure_dataset, headline_data, save
+import numpy as np
+from learnbench import cpu_s, ensure_dataset, headline_data, save, slug
 from pinch_diagnosis import diagnose
+from pinch_prior import composed
 
 import vistac
-from vistac.dataset import FINGERS, open_dataset
+from vistac.dataset import FINGERS, open_dataset, unit_labels
+from vistac.dataset.schema import clean_force_columns
 from vistac_learn.data.fingertip_table import simulator_fingertips
 from vistac_learn.evaluate.references import LABELS
 from vistac_learn.evaluate.run import evaluate_run
+from vistac_learn.metrics.scoring import score
 
 METRIC = "angle_to_mean_median_deg"
 BEFORE = {"photo renders": {"index": 1.72, "thumb": 2.01},  # issue 30: the same recipe and
@@ -49,12 +59,32 @@ BEFORE = {"photo renders": {"index": 1.72, "thumb": 2.01},  # issue 30: the same
 CLEAN_DEFAULT = {"index": 1.06, "thumb": 1.11}  # issue 30: the clean-trained default, clean
 
 
+def finished(run: Path) -> bool:
+    """Whether `run` has trained every epoch of the default recipe."""
+    done = run / "metrics.csv"
+    return done.exists() and len(done.read_text().strip().splitlines()) - 1 >= \
+        vistac.TrainCfg().epochs
+
+
+def prior(photo: Path) -> dict:
+    """Median angles of the simulator's geometry composed into the label through the located
+    crops of the photo test split, and of the noise floor (no model)."""
+    t = open_dataset(photo)
+    rows = t.rows("test")
+    floor = np.concatenate([unit_labels(t.configs[clean_force_columns(f)].to_numpy(float))
+                            for f in FINGERS], axis=1)[rows]
+    entries = {"noise floor (noise-free force)": floor, **composed(photo)}
+    out = {}
+    for name, pred in entries.items():
+        m = score(pred, t, rows, rows, FINGERS)
+        out[name] = {f: float(m[f][METRIC]) for f in FINGERS}
+    return out
+
+
 def trained(data: Path, run: Path) -> dict:
     """Train the default recipe on `data` into `run` unless finished (resumed if unfinished);
     the seconds this call spent (none when nothing was left to train)."""
-    epochs = vistac.TrainCfg().epochs
-    done = run / "metrics.csv"
-    if done.exists() and len(done.read_text().strip().splitlines()) - 1 >= epochs:
+    if finished(run):
         return {}
     t0, c0 = time.perf_counter(), cpu_s()
     vistac.train(vistac.TrainCfg(), data=data, out=run,
@@ -90,16 +120,23 @@ def _cells(v: dict) -> str:
 
 
 def markdown(res: dict) -> str:
+    lines = ["The simulator's geometry of the photo test split composed into the label through "
+             "the located crops, no model (`pinch_prior.composed`); median angle to the cone "
+             "mean:", "", "| geometry composed into the label | index | thumb |", "|---|---|---|"]
+    lines += [f"| {name} | {_cells(v)} |" for name, v in res["prior"].items()]
+    if "evaluate" not in res:
+        return "\n".join([*lines, "", f"Not measured yet: {res['pending']}"])
     ev = res["evaluate"]
-    lines = ["Default recipe trained on `photo` renders, now with the contact targets; "
+    lines += ["", "Default recipe trained on `photo` renders, now with the contact targets; "
              "median angle to the cone mean over the held-out test configurations "
-             f"({ev['photo renders']['n_configs']}), `vistac evaluate` (mirrored view "
+             f"({ev['photo renders']['n_configs']} each), `vistac evaluate` (mirrored view "
              "averaged in):", "",
              "| scored on | with contact targets: index | thumb | without (issue 30): index "
              "| thumb |", "|---|---|---|---|---|"]
-    for name in ("photo renders", "clean renders"):
-        m = {f: ev[name]["metrics"][f][METRIC] for f in FINGERS}
-        lines.append(f"| {name} | {_cells(m)} | {_cells(BEFORE[name])} |")
+    for name, e in ev.items():
+        m = {f: e["metrics"][f][METRIC] for f in FINGERS}
+        before = next((_cells(v) for k, v in BEFORE.items() if name.startswith(k)), "- | -")
+        lines.append(f"| {name} | {_cells(m)} | {before} |")
     refs = ev["photo renders"].get("references") or {}
     for key, r in refs.items():
         lines.append(f"| photo renders, {LABELS.get(key, key)} | "
@@ -130,22 +167,31 @@ def markdown(res: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--photo-data", type=Path, required=True)
-    ap.add_argument("--clean-data", type=Path, required=True)
+    ap.add_argument("--photo-data", type=Path, required=True, help="the training data")
     ap.add_argument("--run", type=Path, required=True)
+    ap.add_argument("--score", action="append", default=[], metavar="NAME=DATA",
+                    help="also score on DATA's test split, as NAME (e.g. 'clean renders=D')")
+    ap.add_argument("--no-train", action="store_true",
+                    help="do not train: write what needs no finished run")
     ap.add_argument("--results", type=Path, default=Path(__file__).parent / "results")
     ap.add_argument("--name", default="photo_aux")
     a = ap.parse_args(argv)
     photo = ensure_dataset(a.photo_data, headline_data(3000, 21, "photo"))
-    clean = ensure_dataset(a.clean_data, headline_data(3000, 21))
-    training = trained(photo, a.run)
-    res = {"run": str(a.run), "training": training, "before": BEFORE,
-           "evaluate": {"photo renders": scored(a.run, photo, "test-photo"),
-                        "clean renders": scored(a.run, clean, "test-clean")},
-           "rest": split_of_the_rest(a.run, photo)}
-    for ev in res["evaluate"].values():
+    data = {"photo renders": photo} | {k: Path(v) for k, _, v in
+                                       (s.partition("=") for s in a.score)}
+    res = {"run": str(a.run), "before": BEFORE, "prior": prior(photo)}
+    if a.no_train and not finished(a.run):
+        res["pending"] = (f"{a.run} is not trained to the end; the same command without "
+                          "--no-train trains it (resuming) and scores it")
+        save(a.results, a.name, res, markdown(res), datasets=[photo])
+        return 0
+    res |= {"training": trained(photo, a.run),
+            "evaluate": {k: scored(a.run, d, f"test-{slug(k)}") for k, d in data.items()},
+            "rest": split_of_the_rest(a.run, photo)}
+    for k, ev in res["evaluate"].items():
         ev.pop("table", None)
-    save(a.results, a.name, res, markdown(res), datasets=[photo, clean])
+        ev["dataset"] = str(data[k])
+    save(a.results, a.name, res, markdown(res), datasets=list(data.values()))
     return 0
 
 

@@ -228,8 +228,7 @@ class Shot:
 
     def _photo_columns(self) -> dict:
         """Columns of the appearance parameters that are set (none for a view without them)."""
-        row: dict = {}
-        row |= self.projection.perspective_columns()
+        row: dict = self.projection.perspective_columns()
         if self.light is not None and self.light.rgb != (1.0, 1.0, 1.0):
             row |= {f"light_{ch}": float(v) for ch, v in zip("rgb", self.light.rgb, strict=True)}
         for name, look in (("object", self.object_look), ("table", self.table_look)):
