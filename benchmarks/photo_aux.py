@@ -20,7 +20,8 @@ configurations:
 
 Before any of it, without a model: the simulator's contact points, normals and finger axes of
 the photo test split composed into the label through the located crops (`pinch_prior.composed`),
-beside the noise floor: that the new targets are right on photo images.
+beside the noise floor: that the new targets are right on photo images; and the located
+fingertips against the simulator's as drawn (`simulator_fingertips`): the locator's accuracy.
 
 Each step is skipped when its output is there: rerun the same command to resume (datasets,
 training, scores). ``--no-train`` stops before training when the run is not finished (on a
@@ -48,7 +49,7 @@ from pinch_prior import composed
 import vistac
 from vistac.dataset import FINGERS, open_dataset, unit_labels
 from vistac.dataset.schema import clean_force_columns
-from vistac_learn.data.fingertip_table import simulator_fingertips
+from vistac_learn.data.fingertip_table import fingertip_table, simulator_fingertips
 from vistac_learn.evaluate.references import LABELS
 from vistac_learn.evaluate.run import evaluate_run
 from vistac_learn.metrics.scoring import score
@@ -78,6 +79,29 @@ def prior(photo: Path) -> dict:
     for name, pred in entries.items():
         m = score(pred, t, rows, rows, FINGERS)
         out[name] = {f: float(m[f][METRIC]) for f in FINGERS}
+    return out
+
+
+def locator_errors(photo: Path) -> dict:
+    """Per finger, on the photo test split: the located fingertips against the simulator's as
+    drawn (`simulator_fingertips`): tip distance (px) median and 90th percentile, share within
+    2 px and 3 deg, fingers not found."""
+    t = open_dataset(photo)
+    rows = t.rows("test")
+    found = fingertip_table(t)
+    truth = simulator_fingertips(t, int(t.render["image_size"]))
+    out = {}
+    for f in FINGERS:
+        got = [found.get(int(r), f) for r in rows]
+        want = [truth.get(int(r), f) for r in rows]
+        ok = np.array([g.ok for g in got])
+        dist = np.array([np.hypot(*(g.tip - w.tip)) for g, w in zip(got, want, strict=True)])
+        turn = np.degrees(np.arccos(np.clip([g.axis @ w.axis for g, w in
+                                             zip(got, want, strict=True)], -1.0, 1.0)))
+        good = ok & (dist < 2.0) & (turn < 3.0)
+        out[f] = {"tip_px_median": float(np.median(dist[ok])),
+                  "tip_px_p90": float(np.percentile(dist[ok], 90)),
+                  "within_2px_3deg_pct": float(100 * good.mean()), "not_found": int((~ok).sum())}
     return out
 
 
@@ -124,6 +148,12 @@ def markdown(res: dict) -> str:
              "the located crops, no model (`pinch_prior.composed`); median angle to the cone "
              "mean:", "", "| geometry composed into the label | index | thumb |", "|---|---|---|"]
     lines += [f"| {name} | {_cells(v)} |" for name, v in res["prior"].items()]
+    lines += ["", "The located fingertips of the photo test split against the simulator's as "
+              "drawn:", "", "| finger | tip median (px) | tip 90th pct (px) | within 2 px and "
+              "3 deg (%) | not found |", "|---|---|---|---|---|"]
+    lines += [f"| {f} | {e['tip_px_median']:.2f} | {e['tip_px_p90']:.2f} | "
+              f"{e['within_2px_3deg_pct']:.1f} | {e['not_found']} |"
+              for f, e in res["locator"].items()]
     if "evaluate" not in res:
         return "\n".join([*lines, "", f"Not measured yet: {res['pending']}"])
     ev = res["evaluate"]
@@ -179,7 +209,8 @@ def main(argv: list[str] | None = None) -> int:
     photo = ensure_dataset(a.photo_data, headline_data(3000, 21, "photo"))
     data = {"photo renders": photo} | {k: Path(v) for k, _, v in
                                        (s.partition("=") for s in a.score)}
-    res = {"run": str(a.run), "before": BEFORE, "prior": prior(photo)}
+    res = {"run": str(a.run), "before": BEFORE, "prior": prior(photo),
+           "locator": locator_errors(photo)}
     if a.no_train and not finished(a.run):
         res["pending"] = (f"{a.run} is not trained to the end; the same command without "
                           "--no-train trains it (resuming) and scores it")
