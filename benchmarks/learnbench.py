@@ -69,6 +69,33 @@ def cpu_s() -> float:
     return own.ru_utime + own.ru_stime + kids.ru_utime + kids.ru_stime
 
 
+def timed_runner(path: Path):
+    """A runner of an experiment's training jobs (`vistac.label_noise(..., runner=)`,
+    `vistac.sim2real`) that adds each job's CPU seconds (training and its scorings) to the JSON
+    `path`, keyed by the job's run folder (resolved): a job resumed after an interruption adds
+    its new session (one killed with SIGKILL loses its unfinished part)."""
+    from vistac_learn.train.job import LocalRunner, run_job
+
+    def job(cfg):
+        c0 = cpu_s()
+        try:
+            return run_job(cfg)
+        finally:
+            spent = json.loads(path.read_text()) if path.exists() else {}
+            key = str(Path(cfg.train.out).resolve())
+            spent[key] = spent.get(key, 0.0) + cpu_s() - c0
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(json.dumps(spent, indent=1))
+
+    return LocalRunner(job)
+
+
+def cell_cpu_s(path: Path, run: str) -> float | None:
+    """The CPU seconds `timed_runner` recorded in `path` for a cell's run folder."""
+    spent = json.loads(path.read_text()) if path.exists() else {}
+    return spent.get(str(Path(run).resolve())) if run else None
+
+
 def run_entry(data: Path, out: Path, label: str, protocol: str = "default",
               progress: bool = True, **changes) -> dict:
     """Train (or finish training) one run and score its best epoch on the test split.
