@@ -82,7 +82,8 @@ def test_a_collision_shape_beyond_tolerance_is_skipped_with_its_reason(tmp_path,
     trimesh.creation.icosphere(subdivisions=3).export(path)
 
     monkeypatch.setattr(library, "convex_decomposition",
-                        lambda mesh, cache_dir, threshold=0.05: [_grown(mesh, 1.12)])
+                        lambda mesh, cache_dir, threshold=0.05, max_pieces=None:
+                        [_grown(mesh, 1.12)])
     spec = ObjectSpec("ball", "mesh", 0, 0.05, 0.0, str(path))
     with pytest.raises(UserError, match=r"ball.stl: its collision shape lies 3\.\d+ mm from the "
                        r"mesh \(6\.\d % of the footprint; objects.shape_tolerance 5 %\)"):
@@ -224,12 +225,16 @@ def test_hard_meshes_give_true_labels_with_both_fingers_in_view(name, friction, 
 @pytest.mark.parametrize("name", SLOW)
 def test_decomposed_hard_meshes_give_true_labels(name, friction, tmp_path_factory):
     """The open scan and the knot go through CoACD (minutes each), the 327 k-face sphere is
-    large: labels as above, or a named skip (a collision shape too far from the mesh)."""
+    large: labels as above, or a named skip (a collision shape too far from the mesh, or draws
+    refused by the shape check)."""
     folder = tmp_path_factory.mktemp(name)
     try:
         rig, cfg, kept = _press_stress_mesh(name, friction, folder)
-    except UserError as exc:
+    except UserError as exc:  # skipped before the run
         assert "its collision shape lies" in str(exc) and name != "sphere_327k_faces"
+        return
+    except NoValidGrasp as exc:  # every draw refused, the knot's mostly by the shape check
+        assert name == "knot" and "collision_shape_off" in exc.summary()
         return
     _assert_labels(name, friction, rig, cfg, kept)
 

@@ -22,9 +22,10 @@ COACD_BUDGET = {"max_convex_hull": 16, "mcts_iterations": 40, "mcts_nodes": 10,
 
 
 def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
-                         threshold: float = 0.05) -> list[trimesh.Trimesh]:
+                         threshold: float = 0.05,
+                         max_pieces: int | None = None) -> list[trimesh.Trimesh]:
     """Convex pieces of a mesh: itself if convex, else CoACD, cached on disk by the hash of the
-    mesh scaled to the unit cube.
+    mesh scaled to the unit cube. `max_pieces` overrides the budget's `max_convex_hull`.
 
     An open mesh (not watertight) goes through CoACD's manifold pre-processing, which needs no
     closed surface.
@@ -33,13 +34,14 @@ def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
     if closed and mesh.convex_hull.volume - mesh.volume <= 1e-3 * mesh.volume:
         return [mesh.convex_hull]
     mode = "auto" if closed else "on"
+    budget = COACD_BUDGET | ({} if max_pieces is None else {"max_convex_hull": max_pieces})
     # Decompose (and key the cache by) the mesh scaled into the unit cube, so that one mesh at
     # different footprints is decomposed once.
     lo, size = mesh.bounds[0], float(mesh.extents.max())
     unit = np.round((mesh.vertices - lo) / size, 9)
     key = hashlib.sha256(
         unit.astype("<f8").tobytes() + mesh.faces.astype("<i8").tobytes()
-        + f"coacd-{threshold}-{mode}-{sorted(COACD_BUDGET.items())}".encode()
+        + f"coacd-{threshold}-{mode}-{sorted(budget.items())}".encode()
     ).hexdigest()[:32]
     cache = Path(cache_dir or default_cache_dir()) / f"{key}.npz"
     if cache.exists():
@@ -50,7 +52,7 @@ def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
 
     coacd.set_log_level("error")
     parts = coacd.run_coacd(coacd.Mesh(unit, mesh.faces), threshold=threshold, seed=0,
-                            preprocess_mode=mode, **COACD_BUDGET)
+                            preprocess_mode=mode, **budget)
     unit_pieces = [trimesh.Trimesh(np.asarray(v), np.asarray(f)).convex_hull for v, f in parts]
     unit_pieces = [p for p in unit_pieces if p.volume > 0]
     pieces = [trimesh.Trimesh(p.vertices * size + lo, p.faces) for p in unit_pieces]

@@ -73,8 +73,9 @@ def press_height(object_height: float, finger_height: float, min_height: float =
 
 
 FINER_CONCAVITY = 0.02
-"""CoACD's concavity threshold for a second decomposition when the first lies too far from the
-mesh (the first uses CoACD's default, 0.05)."""
+FINER_PIECES = 48
+"""CoACD's concavity threshold and most pieces for a second decomposition when the first lies
+too far from the mesh (the first: CoACD's default 0.05, at most 16 pieces)."""
 
 
 def build_object(spec: ObjectSpec, finger_height: float, min_wall: float = 0.001,
@@ -146,10 +147,12 @@ def _faithful_pieces(mesh: trimesh.Trimesh, spec: ObjectSpec, cache_dir: Path | 
     pieces = convex_decomposition(mesh, cache_dir)
     fid = collision_fidelity(mesh, pieces)
     if fid["hausdorff"] > limit:
-        finer = convex_decomposition(mesh, cache_dir, threshold=FINER_CONCAVITY)
+        finer = convex_decomposition(mesh, cache_dir, threshold=FINER_CONCAVITY,
+                                     max_pieces=FINER_PIECES)
         finer_fid = collision_fidelity(mesh, finer)
         if finer_fid["hausdorff"] < fid["hausdorff"]:
-            notes.append(f"decomposed again at concavity {FINER_CONCAVITY:g}: "
+            notes.append(f"decomposed again at concavity {FINER_CONCAVITY:g} (up to "
+                         f"{FINER_PIECES} pieces): "
                          f"{fid['hausdorff'] * 1000:.2f} mm -> "
                          f"{finer_fid['hausdorff'] * 1000:.2f} mm")
             pieces, fid = finer, finer_fid
