@@ -52,7 +52,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from learnbench import reference_entries, run_entry  # noqa: E402
+from learnbench import cpu_s, reference_entries, run_entry  # noqa: E402
 from learning_curve import epochs_for  # noqa: E402
 from study_replay import STUDY_KEYS, STUDY_ROWS, dataset, summarise, table, train_fraction  # noqa: E402, E501
 from studybench import V3, record, twin_parser  # noqa: E402
@@ -60,12 +60,14 @@ from studybench import V3, record, twin_parser  # noqa: E402
 import vistac_learn.evaluate.run as evaluate_module  # noqa: E402
 from vistac.dataset import open_dataset  # noqa: E402
 from vistac.provenance import provenance  # noqa: E402
+from vistac_learn.data.fingertip_table import fingertip_table  # noqa: E402
 
 STUDY_BATCH = 5
 REPLICA_STEPS = 162 * 20 * 20 // STUDY_BATCH  # 12 960
 VAL_COST = 0.35  # CPU of one validation sample against one training sample (no backward pass)
 DEFAULT_RUN_CPU_S = 600.0  # the default recipe per run (learning_curve.json: 200-570 CPU s)
 ANGLE = "angle_to_mean_median_deg"
+NOMINAL_CPU_PER_SAMPLE = 2 / 40  # V3 at ~40 samples/s on 2 idle cores
 
 
 @contextlib.contextmanager
@@ -109,7 +111,8 @@ def plan(args: argparse.Namespace, counts: dict, min_steps: int) -> list[dict]:
             runs += [{"arm": "default", "size": size, "seed": s, "changes": {"epochs": e},
                       "steps": math.ceil(size / 32) * e, "samples": size * e, "val_samples": 0}
                      for s in args.seeds]
-    return runs
+    # the first seed of every size first: a curve early, the other seeds after it
+    return sorted(runs, key=lambda r: (args.seeds.index(r["seed"]), r["size"], r["arm"] != V3))
 
 
 def estimate_h(runs: list[dict], cpu_per_sample: float) -> float:
@@ -122,7 +125,8 @@ def estimate_h(runs: list[dict], cpu_per_sample: float) -> float:
 
 def budget(args, counts, cpu_per_sample) -> tuple[int, list[str]]:
     """The optimiser steps of the sizes above the study's that keep the estimate within
-    `--budget-hours` (the replica's 12 960 when it fits), and the plan's lines."""
+    `--budget-hours` (the replica's 12 960 when it fits), and the plan's lines (the first:
+    the estimate)."""
     lines, steps = [], args.min_steps
     full = estimate_h(plan(args, counts, steps), cpu_per_sample)
     lines.append(f"measured: {cpu_per_sample:.4f} CPU s per V3 training sample "
@@ -138,6 +142,10 @@ def budget(args, counts, cpu_per_sample) -> tuple[int, list[str]]:
                      f"epochs; one random rotation already), seeds stay {len(args.seeds)} "
                      f"(never below 2): {estimate_h(plan(args, counts, steps), cpu_per_sample):.1f}"
                      f" CPU hours. Rerun with --cut to apply it (or --min-steps {steps}).")
+        if estimate_h(plan(args, counts, steps), cpu_per_sample) > args.budget_hours:
+            lines.append("still over: the study-size runs alone (20 fixed rotations x "
+                         f"{args.study_epochs} epochs) exceed it; drop a size (--sizes) or "
+                         "train the study size with fewer --study-epochs, never seeds below 2")
     for r in plan(args, counts, steps):
         if r["seed"] == args.seeds[0]:
             lines.append(f"  {r['arm']:>22} n={r['size']:>5}: {r['changes']}, "
@@ -150,6 +158,10 @@ def measure_epoch(data: Path, work: Path, args, tables) -> float:
     rotation), its validation pass included."""
     size = max(args.sizes)
     frac = train_fraction(tables, size)
+    c0 = cpu_s()
+    fingertip_table(tables, cache_dir=str(work / "cache"))  # once per dataset, not per epoch
+    print(f"fingertips of {len(tables.configs)} configurations located: "
+          f"{cpu_s() - c0:.0f} CPU s (once, cached)", flush=True)
     e = run_entry(data, work, f"measure one epoch n{size}", protocol="study", seed=0,
                   progress=not args.quiet, model=V3, train_fraction=frac, epochs=1,
                   rotations="random", n_rotations=1, cache_dir=str(work / "cache"))
@@ -184,9 +196,10 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
     study = dict(zip(STUDY_KEYS, STUDY_ROWS[V3], strict=True))
     axes[0].plot(162, study["in_cone_pct"], "*", ms=14, color="tab:blue", mec="k",
                  label="the study (real, 34 test configurations)")
-    for ref in refs:
+    for ref, style in zip(refs, ("--", ":"), strict=False):
         for ax, key in ((axes[0], "in_cone_pct"), (axes[1], ANGLE), (axes[2], ANGLE)):
-            ax.axhline(ref["metrics"]["index"][key], ls="--", lw=1, color="grey")
+            ax.axhline(ref["metrics"]["index"][key], ls=style, lw=1, color="grey",
+                       label=ref["label"] if ax is axes[0] else None)
     for ax in axes[:2]:
         ax.set_xscale("log")
         ax.set_xlabel("training configurations")
@@ -195,7 +208,7 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
     axes[2].set_xscale("log")
     axes[2].set_xlabel("training CPU seconds (2 cores)")
     axes[2].set_ylabel("median angle to the cone mean (deg, index)")
-    axes[0].legend(fontsize=7, title="dashed: noise floor, pinch baseline", title_fontsize=7)
+    axes[0].legend(fontsize=7, loc="lower right")
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.tight_layout()
@@ -218,13 +231,18 @@ def curve(args: argparse.Namespace) -> dict:
     if args.estimate and not measured.exists():
         measured.write_text(json.dumps({"cpu_per_sample": measure_epoch(data, work, args,
                                                                        tables)}))
-    if measured.exists():
-        steps, lines = budget(args, counts, json.loads(measured.read_text())["cpu_per_sample"])
-        print("\n".join(lines), flush=True)
-        if not args.cut:
-            steps = args.min_steps
+    per = json.loads(measured.read_text())["cpu_per_sample"] if measured.exists() else None
+    steps, lines = budget(args, counts, per or NOMINAL_CPU_PER_SAMPLE)
+    if per is None:
+        lines[0] = lines[0].replace("measured:", "nominal (not measured; --estimate measures):")
+    print("\n".join(lines), flush=True)
+    if not (args.cut and per):
+        steps = args.min_steps
     if args.plan or args.estimate:
         return {}
+    steps_note = (f"the replica's {REPLICA_STEPS}" if steps == REPLICA_STEPS else
+                  f"cut from {args.min_steps} for the budget" if steps != args.min_steps else
+                  f"--min-steps; the replica's is {REPLICA_STEPS}")
     refs = reference_entries(data, ("index",))
     runs = plan(args, counts, steps)
     done: dict[tuple[str, int], list[dict]] = {}
@@ -247,9 +265,8 @@ def curve(args: argparse.Namespace) -> dict:
                 f"objects split by object: {counts['train']} / {counts['val']} / "
                 f"{counts['test']}), nested training subsets per seed. At {args.study_size} "
                 f"configurations and below: 20 fixed rotations, {args.study_epochs} epochs "
-                f"(the study's). Above: one random rotation per sample and epoch, epochs so "
-                f"that the optimiser steps >= {steps} (the replica's {REPLICA_STEPS}"
-                f"{'' if steps == REPLICA_STEPS else ', cut for the budget'}); each row's "
+                f"(the study's: 20). Above: one random rotation per sample and epoch, epochs so "
+                f"that the optimiser steps >= {steps} ({steps_note}); each row's "
                 "recipe is in the JSON. Every run's epoch chosen on the validation split, "
                 "scored once on the whole test split at 20 fixed rotations. Default recipe: its "
                 "own settings, `learning_curve.epochs_for` epochs. Mean ± std over seeds; "
