@@ -32,7 +32,7 @@ import torch
 from vistac.dataset import FINGERS, open_dataset, unit_labels
 from vistac.dataset.schema import clean_force_columns
 from vistac.provenance import provenance
-from vistac_learn.data.fingertip_table import fingertip_table
+from vistac_learn.data.fingertip_table import FingertipTable, fingertip_table
 from vistac_learn.data.loading import loader
 from vistac_learn.data.samples import SampleSet
 from vistac_learn.data.views import TipCfg, make_view
@@ -42,11 +42,14 @@ from vistac_learn.models.pinch import MU, compose_labels
 NO_CLAMP = 1e6  # a friction coefficient whose cone holds every direction
 
 
-def composed(data: Path, split: str = "test") -> dict[str, np.ndarray]:
-    """(N, 4) predictions of each geometry variant for the split's configurations."""
+def composed(data: Path, split: str = "test", tips: FingertipTable | None = None
+             ) -> dict[str, np.ndarray]:
+    """(N, 4) predictions of each geometry variant for the split's configurations, in crops
+    around `tips` (default: the dataset's located fingertips)."""
     t = open_dataset(data)
     rows = t.rows(split)
-    ds = SampleSet(t, rows, make_view("pinch"), 48, FINGERS, tips=fingertip_table(t))
+    ds = SampleSet(t, rows, make_view("pinch"), 48, FINGERS,
+                   tips=tips if tips is not None else fingertip_table(t))
     out: dict[str, list[np.ndarray]] = {}
     for b in loader(ds, 256):
         aux, side = b["aux"].double(), b["side"].double()
