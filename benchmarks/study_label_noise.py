@@ -79,6 +79,35 @@ UNCALIBRATED = ("The twin (`sim_assets/scenes/study.yaml`: the `lab` imperfectio
                 "noise) is not yet calibrated against the study's table (issue 35).")
 
 
+def msd(values) -> dict:
+    """{mean, std, n} of the finite values (`mean_std`)."""
+    return dict(zip(("mean", "std", "n"), mean_std(list(values)), strict=True))
+
+
+def study_parser(doc: str, name: str, what: str) -> argparse.ArgumentParser:
+    """A parser with the options both study scripts share: work folder, results, name, the
+    twin, seeds, --no-train, --quiet."""
+    p = argparse.ArgumentParser(description=doc.split("\n\n")[0],
+                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("--work", default=str(REPO / "runs" / name),
+                   help=f"folder of the {what} and the experiments (kept for resuming)")
+    p.add_argument("--results", default=str(RESULTS), help="where <name>.json|md|png go")
+    p.add_argument("--name", default=name, help="results file name")
+    p.add_argument("--scene", default=str(SCENE), help="the twin's scene file")
+    p.add_argument("--n-objects", type=int, default=64, help="procedural objects of the twin")
+    p.add_argument("--seeds", type=int, default=3, help="seeds per cell")
+    p.add_argument("--no-train", action="store_true", help="only rewrite the results")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    return p
+
+
+def save_figure(fig, path: Path) -> None:
+    """Lay out, write (110 dpi) and close a figure."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def twin_data(work: Path, n: int, seed: int, n_objects: int, scene: Path = SCENE) -> Path:
     """The study twin's dataset of `n` configurations split by object (made once, resumed)."""
     cfg = GenerateCfg.from_file(scene, n=n, seed=seed, objects=ObjectsCfg(n_objects=n_objects),
@@ -126,8 +155,7 @@ def floors(out: Path, fingers: tuple[str, ...], levels, seeds: int) -> dict[floa
             m = noise_floor(t, t.rows("test"), fingers)
             vals["angle"].append(np.mean([m[f]["angle_to_mean_median_deg"] for f in fingers]))
             vals["in_cone"].append(np.mean([m[f]["in_cone_pct"] for f in fingers]))
-        res[level] = {k: dict(zip(("mean", "std", "n"), mean_std(v), strict=True))
-                      for k, v in vals.items()}
+        res[level] = {k: msd(v) for k, v in vals.items()}
     return res
 
 
@@ -142,9 +170,8 @@ def summary(out: Path, levels, timing: Path) -> list[dict]:
         s = {"level": level, "n": len(mine)}
         for k in ("clean_angle_deg", "noisy_angle_deg", "noisy_in_cone_pct", "val_angle_deg",
                   "label_angle_deg"):
-            s[k] = dict(zip(("mean", "std", "n"), mean_std([r[k] for r in mine]), strict=True))
-        cpu = [c for r in mine if (c := cell_cpu_s(timing, r["run"])) is not None]
-        s["cpu_s"] = dict(zip(("mean", "std", "n"), mean_std(cpu), strict=True))
+            s[k] = msd(r[k] for r in mine)
+        s["cpu_s"] = msd(c for r in mine if (c := cell_cpu_s(timing, r["run"])) is not None)
         res.append(s)
     return res
 
@@ -218,34 +245,22 @@ def plot(models: dict, path: Path) -> None:
     axes[2].legend(fontsize=7)
     fig.suptitle("Label noise on the study twin (not yet calibrated); test split, mean ± std "
                  "over seeds", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    p.add_argument("--work", default=str(REPO / "runs" / "study_label_noise"),
-                   help="folder of the dataset and the experiments (kept for resuming)")
-    p.add_argument("--results", default=str(RESULTS), help="where <name>.json|md|png go")
-    p.add_argument("--name", default="study_label_noise", help="results file name")
+    p = study_parser(__doc__, "study_label_noise", "dataset")
     p.add_argument("--data", default=None, help="an existing twin dataset (default: made in "
                    "<work>/data)")
-    p.add_argument("--scene", default=str(SCENE), help="the twin's scene file")
     p.add_argument("--n", type=int, default=3000, help="configurations generated")
-    p.add_argument("--n-objects", type=int, default=64, help="procedural objects")
     p.add_argument("--data-seed", type=int, default=29, help="the dataset's seed")
     p.add_argument("--levels", type=float, nargs="+", default=[0, 0.02, 0.05, 0.1, 0.2, 0.4])
-    p.add_argument("--seeds", type=int, default=3, help="seeds per level (noise and training)")
     p.add_argument("--models", nargs="+", default=["v3", "default"], choices=tuple(LABELS))
     p.add_argument("--v3-steps", type=int, default=REPLICA_STEPS,
                    help="V3: at least this many optimiser steps (sets the epochs)")
     p.add_argument("--v3-epochs", type=int, default=None,
                    help="V3: these epochs instead (a cut of --v3-steps: say so)")
     p.add_argument("--default-epochs", type=int, default=25, help="default recipe's epochs")
-    p.add_argument("--no-train", action="store_true", help="only rewrite the results")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
     args = p.parse_args(argv)
     work = Path(args.work)
     data = Path(args.data) if args.data else twin_data(work / "data", args.n, args.data_seed,

@@ -56,13 +56,22 @@ import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 import yaml  # noqa: E402
 from learnbench import cell_cpu_s, ensure_dataset, save, timed_runner  # noqa: E402
-from study_label_noise import REPLICA_STEPS, SCENE, UNCALIBRATED, twin_data, v3_epochs  # noqa: E402
+from study_label_noise import (  # noqa: E402
+    REPLICA_STEPS,
+    SCENE,
+    UNCALIBRATED,
+    msd,
+    save_figure,
+    study_parser,
+    twin_data,
+    v3_epochs,
+)
 
 import vistac  # noqa: E402
 from vistac.dataset import SplitCfg, open_dataset  # noqa: E402
 from vistac.dataset.ingest.config import IngestSources  # noqa: E402
 from vistac_learn.experiments import sim2real as S  # noqa: E402
-from vistac_learn.experiments.cells import mean_std, open_experiment, pm, read_rows  # noqa: E402
+from vistac_learn.experiments.cells import open_experiment, pm, read_rows  # noqa: E402
 from vistac_learn.train.config import TrainCfg  # noqa: E402
 from vistac_sim.assets import EXAMPLE_MESHES  # noqa: E402
 from vistac_sim.effects.presets import PRESETS, load_scene  # noqa: E402
@@ -203,9 +212,8 @@ def summary(out: Path, timing: Path) -> list[dict]:
     for (arm, fraction), mine in groups.items():
         s = {"arm": arm, "fraction": fraction, "n": len(mine)}
         for k in ("test_angle_deg", "test_in_cone_pct", "sim_test_angle_deg", "val_angle_deg"):
-            s[k] = dict(zip(("mean", "std", "n"), mean_std([r[k] for r in mine]), strict=True))
-        cpu = [c for r in mine if (c := cell_cpu_s(timing, r["run"])) is not None]
-        s["cpu_s"] = dict(zip(("mean", "std", "n"), mean_std(cpu), strict=True))
+            s[k] = msd(r[k] for r in mine)
+        s["cpu_s"] = msd(c for r in mine if (c := cell_cpu_s(timing, r["run"])) is not None)
         res.append(s)
     return res
 
@@ -276,30 +284,20 @@ def plot(exps: dict, path: Path) -> None:
                  fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    p.add_argument("--work", default=str(REPO / "runs" / "study_sim2real"),
-                   help="folder of the datasets and the experiments (kept for resuming)")
-    p.add_argument("--results", default=str(RESULTS), help="where <name>.json|md|png go")
-    p.add_argument("--name", default="study_sim2real", help="results file name")
-    p.add_argument("--scene", default=str(SCENE), help="the twin's scene file")
+    p = study_parser(__doc__, "study_sim2real", "datasets")
     p.add_argument("--sim", default=None, help="an existing twin dataset (e.g. "
                    "study_label_noise.py's <work>/data); default: made in <work>/sim")
     p.add_argument("--n-sim", type=int, default=3000, help="simulated configurations")
-    p.add_argument("--n-objects", type=int, default=64, help="procedural objects of the sim side")
     p.add_argument("--sim-seed", type=int, default=29, help="the sim dataset's seed")
     p.add_argument("--n-real", type=int, default=200, help="real-side configurations")
     p.add_argument("--real-seed", type=int, default=30, help="the real side's seed (and split)")
     p.add_argument("--real-split", type=float, nargs=3, default=[0.6, 0.2, 0.2],
                    help="train / val / test fractions of the real side's objects")
     p.add_argument("--fractions", type=float, nargs="+", default=[0.1, 0.33, 1.0])
-    p.add_argument("--seeds", type=int, default=3, help="seeds per cell")
     p.add_argument("--experiments", nargs="+", default=list(EXPERIMENTS),
                    choices=tuple(EXPERIMENTS))
     p.add_argument("--epochs", type=int, default=20, help="V3 real-side epochs (the study's)")
@@ -312,8 +310,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--max-missing-pct", type=float, default=10.0,
                    help="fingertips the locator may miss in the photographs (%%)")
     p.add_argument("--data-only", action="store_true", help="make the datasets and stop")
-    p.add_argument("--no-train", action="store_true", help="only rewrite the results")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
     args = p.parse_args(argv)
     work = Path(args.work)
     sim = Path(args.sim) if args.sim else twin_data(work / "sim", args.n_sim, args.sim_seed,
