@@ -132,3 +132,28 @@ def test_the_api_refuses_a_named_pipe_image(env):
         ds.image(ds.config_ids[0])
     _put_back(pipe)
     assert ds.image(ds.config_ids[0]).ndim == 3
+
+
+def _looping_checkpoints(env, case: Path) -> Path:
+    run = case / "run"
+    shutil.copytree(env["paths"]["run"], run)
+    shutil.rmtree(run / "checkpoints")
+    (run / "checkpoints").symlink_to(run / "checkpoints")  # a link to itself
+    return run
+
+
+@pytest.mark.parametrize("command", ["train", "evaluate"])
+def test_a_looping_checkpoints_link_is_one_clear_line(command, env, capsys):
+    """A run's ``checkpoints`` a symbolic link to itself used to be "[Errno 17] File exists"
+    (train) or "best.pt: missing" (evaluate); the line now says what it is. Once the link is
+    gone, training the run again works."""
+    run = _looping_checkpoints(env, env["root"] / "fifo" / f"loop-{command}")
+    argv = (T.format(out=run, **env["paths"]) if command == "train"
+            else f"evaluate --run {run} --no-plots").split()
+    capsys.readouterr()
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "Traceback" not in err, err
+    assert f"{run}/checkpoints: a symbolic link that cannot be followed" in err, err
+    (run / "checkpoints").unlink()
+    assert main(T.format(out=run, **env["paths"]).split()) == 0

@@ -150,6 +150,21 @@ def not_a_file(path: str | Path) -> str | None:
                 None if stat.S_ISREG(mode) else "not a regular file")
 
 
+def broken_link(path: str | Path) -> str | None:
+    """Why `path` cannot be followed when it is a symbolic link that leads nowhere (its target
+    is missing, or it loops back on itself), else None."""
+    path = Path(path)
+    if not path.is_symlink():
+        return None
+    try:
+        path.stat()
+    except FileNotFoundError:
+        return f"a symbolic link to {os.readlink(path)}, which does not exist"
+    except OSError as exc:  # ELOOP
+        return f"a symbolic link that cannot be followed ({exc.strerror or exc})"
+    return None
+
+
 def check_file(path: str | Path, option: str = "") -> None:
     """Refuse `path` if it exists and is not a regular file (`not_a_file`).
 

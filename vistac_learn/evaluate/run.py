@@ -28,7 +28,7 @@ import pandas as pd
 import torch
 
 from vistac.dataset import open_dataset
-from vistac.dataset.files import atomic_write_bytes
+from vistac.dataset.files import atomic_write_bytes, broken_link
 from vistac.errors import UserError, brief
 from vistac.folder_kinds import EVALUATION, mark
 from vistac_learn.data.fingertip_table import fingertip_table
@@ -79,6 +79,10 @@ def load_model(
 ) -> tuple[torch.nn.Module, int]:
     """The run's model with weights from ``checkpoints/<checkpoint>.pt``; (model, epoch)."""
     path = Path(run) / "checkpoints" / f"{checkpoint}.pt"
+    why = broken_link(path.parent)
+    if why is not None:
+        raise UserError(f"{path.parent}: {why}; remove it (or point it at the run's "
+                        "checkpoints) and train the run again")
     if not path.exists():
         raise UserError(f"{path}: missing (has the run finished an epoch?)")
     ck = load_checkpoint(path, ("model", "epoch"), RETRAIN, map_location=device)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from vistac.dataset.files import atomic_write_json, remove_stale_temporaries
+from vistac.dataset.files import atomic_write_json, broken_link, remove_stale_temporaries
 from vistac.errors import UserError
 from vistac_learn.train.build import build_view, input_size
 from vistac_learn.train.checkpoints import (
@@ -72,6 +72,10 @@ class RunFolder:
         out = self.path
         if out.exists() and not out.is_dir():
             raise UserError(f"--out {out}: exists and is not a folder")
+        why = broken_link(self.checkpoints)
+        if why is not None:
+            raise UserError(f"--out {self.checkpoints}: {why}; remove it (or point it at a "
+                            "folder) and run again")
         if out.is_dir() and not self.config.exists() \
                 and any(p.name not in RUN_FILES for p in out.iterdir()):
             raise UserError(f"--out {out}: a folder that is not a run and not empty; choose "
