@@ -194,7 +194,7 @@ def markdown(out: dict) -> str:
             f"| {r['mesh']} | {r['friction']:g} | {r['kept']} / {r['draws']} | {reasons} | "
             + (f"{lab[0]:.3f} / {lab[1]:.3f}" if lab else "") + " | "
             + (f"{stick[0]:.2f} / {stick[1]:.2f}" if stick and r["friction"] >= 10 else "")
-            + f" | {r['cpu_per_kept_s'] / ref:.1f} |")
+            + (f" | {r['cpu_per_kept_s'] / ref:.1f} |" if r["kept"] else " | none kept |"))
     lines += ["", "| physics setting | presses | refused | error median / p95 / max deg |",
               "|---|---|---|---|"]
     for s in out["settings"]:
