@@ -18,7 +18,8 @@ simulated twin, fine-tuned on a study-sized, photo-like "real" side read back by
   epochs); its sim-only pretraining with one random rotation per sample and epoch
   (``--sim-rotations random --sim-n-rotations 1``) for at least the replica's 12 960 optimiser
   steps (``--sim-epochs``); zero-shot, scratch and fine-tuned. ``v3-frozen``: the same with
-  ``--freeze features`` (its sim-only runs are v3's, linked, not trained again).
+  ``--freeze features`` (its sim-only and from-scratch runs are v3's, linked, not trained
+  again).
   ``default``: the project's default recipe on the same data.
 
 Outputs: ``<results>/<name>.{json,md,png}``: per experiment the table (real test median angle
@@ -175,17 +176,25 @@ def base_cfgs(args: argparse.Namespace, n_sim_train: int) -> dict[str, tuple[Tra
             "default": (default, {"freeze": "none"})}
 
 
-def link_pretrained(work: Path, cfg: S.Sim2RealCfg, base: TrainCfg, seeds: int) -> None:
-    """The frozen experiment's sim-only runs are v3's (the same settings): its folder is made
-    as `vistac.sim2real` makes it, and its ``runs/sim/seed-S`` link to v3's."""
+def link_shared_runs(work: Path, cfg: S.Sim2RealCfg, base: TrainCfg) -> None:
+    """The frozen experiment's sim-only and from-scratch runs are v3's (the same settings; only
+    the fine-tuned ones freeze): its folder is made as `vistac.sim2real` makes it, and its
+    ``runs/sim/seed-S`` and ``runs/scratch/fraction-F/seed-S`` link to v3's (their cells are
+    scored again, not trained)."""
     cfg = S.resolved(cfg)
     open_experiment(cfg, dataclasses.replace(base, data=cfg.real, out=""), S.KIND)
-    for s in range(seeds):
-        link = Path(cfg.out) / "runs" / "sim" / f"seed-{s}"
+    shared = [Path("sim") / f"seed-{s}" for s in range(cfg.seeds)]
+    shared += [Path("scratch") / f"fraction-{f:g}" / f"seed-{s}" for f in cfg.fractions
+               for s in range(cfg.seeds)]
+    missing = [p for p in shared if not (work / "v3" / "runs" / p / "metrics.csv").exists()]
+    if missing:
+        raise SystemExit(f"v3-frozen shares v3's runs: run the v3 experiment first (no "
+                         f"{work / 'v3' / 'runs' / missing[0]})")
+    for part in shared:
+        link = Path(cfg.out) / "runs" / part
         if not link.exists() and not link.is_symlink():
             link.parent.mkdir(parents=True, exist_ok=True)
-            os.symlink((work / "v3" / "runs" / "sim" / f"seed-{s}").resolve(), link,
-                       target_is_directory=True)
+            os.symlink((work / "v3" / "runs" / part).resolve(), link, target_is_directory=True)
 
 
 def run_experiment(name: str, sim: Path, real: Path, args: argparse.Namespace,
@@ -194,7 +203,7 @@ def run_experiment(name: str, sim: Path, real: Path, args: argparse.Namespace,
     cfg = S.Sim2RealCfg(sim=str(sim), real=str(real), out=str(work / name),
                         fractions=tuple(args.fractions), seeds=args.seeds, **extra)
     if name == "v3-frozen":
-        link_pretrained(work, cfg, base, args.seeds)
+        link_shared_runs(work, cfg, base)
     if not args.no_train:
         vistac.sim2real(cfg, base, progress=not args.quiet,
                         runner=timed_runner(work / f"{name}_cpu_s.json"))
@@ -357,7 +366,7 @@ def main(argv: list[str] | None = None) -> int:
           "mean on the real test split (V3: index finger; default: mean of both); the epoch "
           "chosen on the validation split of the dataset trained on; mean ± std over seeds; "
           "train CPU s: training and scoring of one cell, 2 shared cores (the frozen "
-          "experiment's sim-only cells are v3's runs, scored again).\n"]
+          "experiment's sim-only and from-scratch cells are v3's runs, scored again).\n"]
     for e in exps.values():
         s = e["settings"]
         md += [f"## {e['label']}\n", f"Real runs: {s['epochs']} epochs, rotations "
