@@ -60,7 +60,7 @@ def env(tmp_path_factory):
               "scene_nan": "effects: {fts3: {hysteresis: .nan}}\n",
               "scene_shadow": "effects: {shadows: {map_size: 0}}\n",
               "scene_jitter": "recording: {timing_jitter: 1.5}\n",
-              "scene_unknown": "physics: {friction: 0.5}\n"}
+              "scene_unknown": "optics: {focus: 0.5}\n"}
     for name, text in scenes.items():
         (root / f"{name}.yaml").write_text(text)
     paths = {"data": data, "data2": data2, "run": run, "rec": data / "recordings",

@@ -79,7 +79,7 @@ CASES = [
     Case("gen-textures-missing", G + " --preset photo --textures {missing}", "--textures"),
     Case("gen-textures-unused", G + " --textures {missing}", "--textures"),
     Case("gen-scene-jitter", G + " --scene {scene_jitter}", "recording.timing_jitter"),
-    Case("gen-scene-unknown-key", G + " --scene {scene_unknown}", "physics"),
+    Case("gen-scene-unknown-key", G + " --scene {scene_unknown}", "optics"),
     Case("gen-unknown-option", G + " --bogus", "--bogus"),
     Case("gen-engine", G + " --engine spark", "--engine"),
     Case("gen-max-concurrent-0", G + " --engine ray --max-concurrent 0", "--max-concurrent"),
