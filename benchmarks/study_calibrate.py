@@ -95,11 +95,19 @@ def transplant(pred: pd.DataFrame, run_tables, tables) -> tuple[np.ndarray, np.n
     return np.stack([length * np.sin(angle), length * np.cos(angle)], axis=1), item_row
 
 
+SAME = ("object_id", "object_x", "object_y", "object_yaw", "target_index_x", "target_index_y")
+COLUMNS = (*replay.STUDY_KEYS, "angle_to_mean_median_deg", "same_config_pct")
+
+
 def predicted(pred: pd.DataFrame, run_tables, tables) -> dict:
-    """The study's columns (and the angle to the mean) of the transplanted predictions."""
+    """The study's columns (and the angle to the mean) of the transplanted predictions, and
+    the % of their configurations whose object, pose and index target match the run's."""
     p, item_row = transplant(pred, run_tables, tables)
     m = score(p, tables, np.unique(item_row), item_row, ("index",))["index"]
-    return {k: float(m[k]) for k in (*replay.STUDY_KEYS, "angle_to_mean_median_deg")}
+    ids = pd.Index(np.unique(pred["config_id"]))
+    a, b = (t.configs.set_index("config_id").loc[ids, list(SAME)] for t in (run_tables, tables))
+    same = float(100 * np.mean((a.astype(str) == b.astype(str)).all(axis=1)))
+    return {**{k: float(m[k]) for k in COLUMNS[:-1]}, "same_config_pct": same}
 
 
 def plot(rows: list[dict], path: Path) -> None:
@@ -150,20 +158,22 @@ def calibrate(args: argparse.Namespace) -> dict:
         rows.append({"label": name, "changes": changes, "scene": str(scene),
                      "metrics": predicted(pred, run_tables, open_dataset(data))})
         print(f"{name}: {rows[-1]['metrics']}", flush=True)
-    head = ["twin (cones)", *(h for h, _ in replay.STUDY_COLUMNS), "median ° to mean"]
+    head = ["twin (cones)", *(h for h, _ in replay.STUDY_COLUMNS), "median ° to mean",
+            "% same configurations"]
     lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
     study = dict(zip(replay.STUDY_KEYS, replay.STUDY_ROWS[V3], strict=True))
     for r in [*rows, {"label": "the study's V3 (real)", "metrics": study}]:
         lines.append("| " + " | ".join([r["label"], *(replay.fmt(k, r["metrics"].get(k))
-                                                        for k in (*replay.STUDY_KEYS,
-                                                                  "angle_to_mean_median_deg"))])
+                                                        for k in COLUMNS)])
                      + " |")
     md = "\n".join(lines) + (
         f"\n\nIndex finger. Predicted, not trained: the test predictions of `{run}` "
         f"({len(pred)} predictions), each turned from its configuration's mean label onto the "
         "same configuration's mean label in the candidate's dataset (same seed, size, objects "
         "and split, only the scene's effects changed) and scored against its cone. The first "
-        "row transplants onto the run's own dataset: the run's figures.")
+        "row transplants onto the run's own dataset: the run's figures. % same configurations: "
+        "the test configurations whose object, pose and index target are the run's (below "
+        "100, the transplant mixes configurations: read that row with care).")
     result = {"provenance": provenance(datasets), "run": str(run),
               "settings": {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()},
               "rows": rows, "table": md}
