@@ -235,9 +235,9 @@ def plot(models: dict, path: Path) -> None:
                 f = [entry["floor"][r["level"]][floor_key[k]]["mean"] for r in rows]
                 ax.plot(x, f, "--", color=colour, alpha=0.6,
                         label=f"noise floor ({', '.join(entry['fingers'])})")
-            else:
-                ax.plot(x, [r["label_angle_deg"]["mean"] for r in rows], ":", color=colour,
-                        alpha=0.6, label="the labels' own noise")
+            elif colour == "tab:blue":  # the same labels for every model: drawn once
+                ax.plot(x, [r["label_angle_deg"]["mean"] for r in rows], ":", color="grey",
+                        label="the labels' own noise (median angle to the clean label)")
             ax.set_xlabel("label noise (relative std of the force)")
             ax.set_ylabel(name)
             ax.grid(alpha=0.3)
