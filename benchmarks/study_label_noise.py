@@ -31,12 +31,18 @@ interrupted run from its last epoch) and rewrites the results, so an interrupted
 most one epoch. CPU seconds are measured per cell (training and its two test scorings,
 `learnbench.timed_runner`) and kept in ``<work>/<model>_cpu_s.json``.
 
-Cost (measured on the shared 2-core machine, one epoch at the real size, see the report of
-issue 29): a V3 epoch of one random rotation over ~2100 training configurations is about
-EPOCH_S CPU s, so one V3 cell (31 epochs, 13 000 steps) about V3_CELL_H CPU h and the 18 cells
-about V3_TOTAL_H CPU h; the default recipe about 7 CPU min a cell, 2 CPU h for 18. Over the
-6-hour budget, cut in this order: ``--v3-epochs`` (e.g. 16, half the replica's steps, say so),
-then ``--seeds 2``; never below 2 seeds.
+Cost (measured on the shared 2-core machine, 2026-11-28, load ~20: CPU seconds, user +
+system). V3 with one random rotation costs about 0.17 CPU s per training sample (a 151-sample
+epoch plus its scorings: 31-35 CPU s per cell; a 2059-sample epoch at the real size: about 350
+CPU s). As specified (31 epochs = 12 960 steps, 6 levels x 3 seeds) one V3 cell is ~3 CPU h,
+the 18 cells ~54 CPU h: far over the 6-hour budget. The default recipe (25 epochs over 2059
+configurations) is ~7 CPU min a cell, ~2 CPU h for 18. Cut, rotations being one already:
+epochs first, then seeds to 2, never fewer. The command that fits ~6 CPU h:
+
+    .venv/bin/python benchmarks/study_label_noise.py --seeds 2 --v3-epochs 4
+
+(V3: 4 epochs = 1 648 steps, 13 % of the replica's, 12 cells ~4.7 CPU h; default: 12 cells
+~1.3 CPU h). The results state the epochs and steps used.
 
 Usage:
     .venv/bin/python benchmarks/study_label_noise.py                      # the whole run

@@ -30,9 +30,19 @@ the gain of pretraining per fraction; the figure: real test angle against the fr
 data, per arm and experiment. Resumable: the datasets and finished cells are kept; a rerun
 continues, and ``--no-train`` only rewrites the results.
 
-Cost: see the report of issue 29 (one V3 epoch measured at the real size). The sim pretraining
-dominates (3 seeds x >= 12 960 steps); over the 6-hour budget cut ``--sim-epochs`` first, then
-``--seeds 2`` (never fewer).
+Cost (measured on the shared 2-core machine, 2026-11-28; CPU seconds): V3 trains at about
+0.17 CPU s per sample (one random rotation, rendered each epoch; fixed rotations are rendered
+once and cost less). As specified (3 seeds; pretraining 31 epochs x ~2059 configurations =
+12 960 steps, ~3 CPU h a seed; real runs 20 rotations x 20 epochs over ~120 configurations, up
+to 48 000 samples, ~2 CPU h at fraction 1) the whole run is ~30-35 CPU h. Cut, rotations and
+epochs first, seeds to 2 (never fewer). The command that fits ~6 CPU h:
+
+    .venv/bin/python benchmarks/study_sim2real.py --sim runs/study_label_noise/data \
+        --seeds 2 --sim-epochs 4 --n-rotations 4
+
+(pretraining 4 epochs = 1 648 steps, 13 % of the replica's, ~0.8 CPU h; real runs 4 fixed
+rotations x 20 epochs, v3 ~2.3 CPU h, the frozen fine-tuning ~0.8, the default recipe ~0.5).
+Generating the real side costs ~10 CPU s a configuration (photo + recordings), ~0.5 CPU h.
 
 Usage:
     .venv/bin/python benchmarks/study_sim2real.py --sim runs/study_label_noise/data
