@@ -42,7 +42,7 @@ epochs first, seeds to 2 (never fewer). The command that fits ~6 CPU h:
 
 (pretraining 4 epochs = 1 648 steps, 13 % of the replica's, ~0.8 CPU h; real runs 4 fixed
 rotations x 20 epochs, v3 ~2.3 CPU h, the frozen fine-tuning ~0.8, the default recipe ~0.5).
-Generating the real side costs ~10 CPU s a configuration (photo + recordings), ~0.5 CPU h.
+Generating the datasets costs minutes (the 200-configuration twin took 50 s wall here).
 
 Usage:
     .venv/bin/python benchmarks/study_sim2real.py --sim runs/study_label_noise/data
