@@ -31,11 +31,13 @@ interrupted run from its last epoch) and rewrites the results, so an interrupted
 most one epoch. CPU seconds are measured per cell (training and its two test scorings,
 `learnbench.timed_runner`) and kept in ``<work>/<model>_cpu_s.json``.
 
-Cost (measured on the shared 2-core machine, 2026-11-28, load ~20: CPU seconds, user +
-system). V3 with one random rotation costs about 0.17 CPU s per training sample (a 151-sample
-epoch plus its scorings: 31-35 CPU s per cell; a 2059-sample epoch at the real size: about 350
-CPU s). As specified (31 epochs = 12 960 steps, 6 levels x 3 seeds) one V3 cell is ~3 CPU h,
-the 18 cells ~54 CPU h: far over the 6-hour budget. The default recipe (25 epochs over 2059
+Cost (measured on the shared 2-core machine, 2026-11-28, load ~20: CPU seconds, user + system).
+V3 with one random rotation costs about 0.17 CPU s per training sample (a 151-sample epoch plus
+its scorings: 31-35 CPU s per cell; at the real size, `vistac train --protocol study --rotations
+random --n-rotations 1 --epochs 1` on a 3000-configuration dataset, 2059 training samples,
+fingertips located and the validation split scored included: 377 CPU s, 64 min wall). As
+specified (31 epochs = 12 960 steps, 6 levels x 3 seeds) one V3 cell is ~3 CPU h, the 18 cells
+~54 CPU h: far over the 6-hour budget. The default recipe (25 epochs over 2059
 configurations) is ~7 CPU min a cell, ~2 CPU h for 18. Cut, rotations being one already:
 epochs first, then seeds to 2, never fewer. The command that fits ~6 CPU h:
 
