@@ -3,9 +3,12 @@ convex pieces (the geometry MuJoCo collides)."""
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import io
 import os
+import warnings
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -45,9 +48,9 @@ def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
     ).hexdigest()[:32]
     cache = Path(cache_dir or default_cache_dir()) / f"{key}.npz"
     if cache.exists():
-        data = np.load(cache)
-        return [trimesh.Trimesh(data[f"v{i}"] * size + lo, data[f"f{i}"])
-                for i in range(int(data["n"]))]
+        cached = read_cached_pieces(cache)
+        if cached is not None:
+            return [trimesh.Trimesh(v * size + lo, f) for v, f in cached]
     import coacd
 
     coacd.set_log_level("error")
@@ -64,6 +67,29 @@ def convex_decomposition(mesh: trimesh.Trimesh, cache_dir: Path | None,
     np.savez(buf, n=len(unit_pieces), **arrays)
     atomic_write_bytes(cache, buf.getvalue())
     return pieces
+
+
+def read_cached_pieces(cache: Path) -> list[tuple[np.ndarray, np.ndarray]] | None:
+    """The (unit-cube vertices, faces) of a cached decomposition, or None for a cache file that
+    cannot be read (truncated, overwritten, not a regular file): it is named in a warning and
+    removed, and the decomposition is made again."""
+    try:
+        if not cache.is_file():
+            raise ValueError("not a regular file")
+        with np.load(cache, allow_pickle=False) as data:
+            out = [(np.asarray(data[f"v{i}"], float), np.asarray(data[f"f{i}"], np.int64))
+                   for i in range(int(data["n"]))]
+        if not out or any(not np.isfinite(v).all() or v.ndim != 2 or v.shape[1] != 3
+                          or f.ndim != 2 or f.shape[1] != 3 or f.size == 0
+                          or f.min() < 0 or f.max() >= len(v) for v, f in out):
+            raise ValueError("pieces out of shape")
+        return out
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        warnings.warn(f"{cache}: damaged convex-decomposition cache ({exc}); removed, "
+                      "decomposing again", stacklevel=2)
+        with contextlib.suppress(OSError):
+            cache.unlink()
+        return None
 
 
 def pieces_section(pieces: list[trimesh.Trimesh], z: float):

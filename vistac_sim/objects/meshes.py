@@ -36,6 +36,11 @@ def find_mesh_files(paths: list[str] | tuple[str, ...]) -> list[Path]:
     for p in map(Path, paths):
         if p.is_dir():
             found = sorted(f for f in p.rglob("*") if f.suffix.lower() in MESH_SUFFIXES)
+            for f in found:
+                if f.is_symlink() and not os.path.exists(f):  # dangling, or a loop (ELOOP)
+                    raise UserError(f"{f}: a symbolic link that leads to no file (dangling, or "
+                                    "a loop back to itself); remove it or point it at a mesh")
+            found = [f for f in found if os.path.isfile(f)]  # folders named like meshes
             if not found:
                 raise UserError(f"{p}: folder holds no mesh files ({', '.join(MESH_SUFFIXES)})")
             files += found
