@@ -3,6 +3,7 @@ results file that the README, docs/ and benchmarks/README.md name exists."""
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import runpy
@@ -108,3 +109,15 @@ def test_relative_links_of_the_readme_the_index_and_the_changelog_resolve():
             if not re.match(r"[a-z]+://", target) and not (page.parent / target).exists():
                 broken.append(f"{page.relative_to(ROOT)}: {target}")
     assert broken == []
+
+
+def test_every_results_json_records_its_command_and_commit():
+    """A reader can reproduce every committed results file: its JSON names the command that made
+    it and the commit of the code (vistac.provenance, or recorded after the fact for older ones)."""
+    missing = []
+    for path in sorted((ROOT / "benchmarks" / "results").rglob("*.json")):
+        data = json.loads(path.read_text())
+        prov = data.get("provenance", {}) if isinstance(data, dict) else {}
+        if not (prov.get("command") and prov.get("commit")):
+            missing.append(path.name)
+    assert missing == []
