@@ -255,9 +255,7 @@ def replay(args: argparse.Namespace) -> dict:
                 "resampled from each run's, averaged over seeds. Noise floor and pinch baseline "
                 "on the unrotated test images. Training CPU seconds: user + system, 2 cores.")
         result.update({"provenance": provenance([data]), "dataset": str(data),
-                       "split_counts": counts, "settings": {k: (str(v) if isinstance(v, Path)
-                                                                 else v)
-                                                            for k, v in vars(args).items()},
+                       "split_counts": counts, "settings": vars(args),
                        "rows": rows, "table": table(rows, note)})
         out = Path(args.results)
         out.mkdir(parents=True, exist_ok=True)

@@ -21,9 +21,10 @@ import sys
 from pathlib import Path
 
 from learnbench import cpu_s, ensure_dataset
+from study_replay import train_fraction
 
 import vistac_learn.data.samples as samples
-from vistac.dataset import SplitCfg
+from vistac.dataset import SplitCfg, open_dataset
 from vistac.provenance import provenance
 from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.loop import train
@@ -49,14 +50,14 @@ def main(argv: list[str] | None = None) -> int:
     work = Path(args.work)
     data = ensure_dataset(work / "data", GenerateCfg.from_preset(
         "lab", noise=0.05, n=args.n, seed=0, split=SplitCfg(fractions=(0.5, 0.25, 0.25))))
-    n_train = args.n * 0.5
+    frac = train_fraction(open_dataset(data), args.n_train)
     budget = samples.RENDER_CACHE_BYTES
     arms = {}
     for name, cache in (("rendered every epoch", 0), ("rendered once", budget)):
         samples.RENDER_CACHE_BYTES = cache
         run = work / name.replace(" ", "_")
         cfg = protocol_cfg("study", str(data), str(run), epochs=args.epochs, device="cpu",
-                           train_fraction=(args.n_train - 0.5) / n_train,
+                           train_fraction=frac,
                            cache_dir=str(work / "cache"))
         c0 = cpu_s()
         train(cfg, progress=False)
