@@ -62,3 +62,23 @@ PLATEAUS = {  # config id -> per press (index xyz, thumb xyz) in mN
 def no_leftovers(out: Path) -> None:
     assert not out.exists()
     assert not [p for p in out.parent.iterdir() if p.name.startswith(f".{out.name}.")]
+
+
+def recordings_with_rejections(tmp_path: Path, with_good: bool = False) -> tuple[Path, Path]:
+    """Folders ``rec`` and ``img``: recording 000001 with a saturated grasp between two good
+    ones, 000002 with only a saturated one (dropped), and 000000 all good when `with_good`; one
+    image per recording."""
+    rng = np.random.default_rng(2)
+    rec, img = tmp_path / "rec", tmp_path / "img"
+    rec.mkdir()
+    img.mkdir()
+    good = [[0, 300, -1500], [0, -200, -1200]]
+    sat = [[0, 300, -9990], [0, -200, -1200]]
+    ids = [0, 1, 2] if with_good else [1, 2]
+    if with_good:
+        write_csv(rec / "000000.csv", press_series([good, good], rng))
+    write_csv(rec / "000001.csv", press_series([good, sat, good], rng))
+    write_csv(rec / "000002.csv", press_series([sat], rng))  # nothing usable: dropped
+    for i in ids:
+        write_png(img / f"{i:06d}.png")
+    return rec, img

@@ -14,6 +14,7 @@ from ingest_fixtures import (
     direction,
     no_leftovers,
     press_series,
+    recordings_with_rejections,
     write_csv,
     write_png,
 )
@@ -56,16 +57,7 @@ def test_ingest_synthetic_recordings(folders, tmp_path):
 
 
 def test_ingest_lists_rejected_grasps(tmp_path):
-    rng = np.random.default_rng(2)
-    rec, img = tmp_path / "rec", tmp_path / "img"
-    rec.mkdir()
-    img.mkdir()
-    good = [[0, 300, -1500], [0, -200, -1200]]
-    sat = [[0, 300, -9990], [0, -200, -1200]]
-    write_csv(rec / "000001.csv", press_series([good, sat, good], rng))
-    write_csv(rec / "000002.csv", press_series([sat], rng))  # nothing usable: dropped
-    write_png(img / "000001.png")
-    write_png(img / "000002.png")
+    rec, img = recordings_with_rejections(tmp_path)
     out = tmp_path / "ds"
     man = ingest(IngestSources(images=img, recordings=rec), out)
     assert man["rejected"]["by_reason"] == {"saturated": 2}

@@ -3,8 +3,7 @@ first (with the dropped recording), segments and reasons as `vistac ingest` foun
 
 from __future__ import annotations
 
-import numpy as np
-from ingest_fixtures import press_series, write_csv, write_png
+from ingest_fixtures import recordings_with_rejections
 
 from vistac.cli import main
 from vistac.dataset.ingest.config import IngestSources
@@ -14,18 +13,7 @@ from vistac_learn.inspect.report import inspect_dataset
 
 
 def _sources(tmp_path):
-    rng = np.random.default_rng(2)
-    rec, img = tmp_path / "rec", tmp_path / "img"
-    rec.mkdir()
-    img.mkdir()
-    good = [[0, 300, -1500], [0, -200, -1200]]
-    sat = [[0, 300, -9990], [0, -200, -1200]]
-    write_csv(rec / "000000.csv", press_series([good, good], rng))
-    write_csv(rec / "000001.csv", press_series([good, sat, good], rng))
-    write_csv(rec / "000002.csv", press_series([sat], rng))  # nothing usable: dropped
-    for i in range(3):
-        write_png(img / f"{i:06d}.png")
-    return rec, img
+    return recordings_with_rejections(tmp_path, with_good=True)
 
 
 def _index(report_md):
