@@ -21,7 +21,7 @@ import numpy as np
 from vistac.config import apply
 from vistac.dataset.files import atomic_write_bytes
 from vistac.dataset.ingest.config import IngestCfg
-from vistac.dataset.ingest.preprocess import Grasp, preprocess
+from vistac.dataset.ingest.preprocess import RecordedGrasp, preprocess
 from vistac.dataset.ingest.readers import read_recording
 from vistac.dataset.reader import DatasetTables
 from vistac.dataset.recordings import recording_name
@@ -40,12 +40,12 @@ class RecordingPage:
 
     config_id: int
     source: Path
-    grasps: list[Grasp]
+    grasps: list[RecordedGrasp]
     page: str = ""  # file name of the PNG under the report's recordings/ folder
     error: str = ""  # why the recording could not be read
 
     @property
-    def rejected(self) -> list[Grasp]:
+    def rejected(self) -> list[RecordedGrasp]:
         return [g for g in self.grasps if g.reason is not None]
 
 

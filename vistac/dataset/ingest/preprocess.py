@@ -40,7 +40,7 @@ def representative_sample(fz: np.ndarray) -> int | None:
 
 
 @dataclass
-class Grasp:
+class RecordedGrasp:
     """One segment of a recording and what became of it."""
 
     repeat: int
@@ -51,7 +51,7 @@ class Grasp:
     detail: str = ""
 
 
-def preprocess(forces: np.ndarray, cfg: IngestCfg) -> list[Grasp]:
+def preprocess(forces: np.ndarray, cfg: IngestCfg) -> list[RecordedGrasp]:
     """Split one recording into grasps, pick each one's sample and apply the criteria.
 
     Args:
@@ -59,12 +59,12 @@ def preprocess(forces: np.ndarray, cfg: IngestCfg) -> list[Grasp]:
         cfg: thresholds and criteria.
 
     Returns:
-        Every segment as a `Grasp`, `reason` None for the kept ones.
+        Every segment as a `RecordedGrasp`, `reason` None for the kept ones.
     """
     n = len(forces)
     out = []
     for k, (a, b) in enumerate(split_grasps(forces[:, 0, 2], cfg.threshold)):
-        g = Grasp(k, int(a), int(b))
+        g = RecordedGrasp(k, int(a), int(b))
         out.append(g)
         if b - a < cfg.min_samples:
             g.reason, g.detail = "too_short", f"{b - a} samples < {cfg.min_samples}"

@@ -21,7 +21,7 @@ from vistac.dataset import (
 )
 from vistac.dataset.card import write_card
 from vistac.dataset.ingest.config import IngestCfg, IngestSources
-from vistac.dataset.ingest.preprocess import REASONS, Grasp, preprocess
+from vistac.dataset.ingest.preprocess import REASONS, RecordedGrasp, preprocess
 from vistac.dataset.ingest.readers import (
     IMAGE_SUFFIXES,
     config_ids,
@@ -172,7 +172,7 @@ def check_image_sizes(paths: list[Path]) -> None:
                             "pass --image-size N to crop and resize them all)")
 
 
-def _presses_of(cid: int, kept: list[Grasp], forces: np.ndarray) -> list[dict]:
+def _presses_of(cid: int, kept: list[RecordedGrasp], forces: np.ndarray) -> list[dict]:
     rows = []
     for g in kept:
         f = forces[g.sample]
