@@ -74,7 +74,7 @@ def timed_runner(path: Path):
     `vistac.sim2real`) that adds each job's CPU seconds (training and its scorings) to the JSON
     `path`, keyed by the job's run folder (resolved): a job resumed after an interruption adds
     its new session (one killed with SIGKILL loses its unfinished part)."""
-    from vistac_learn.train.job import LocalRunner, run_job
+    from vistac_learn.train.job import LocalJobRunner, run_job
 
     def job(cfg):
         c0 = cpu_s()
@@ -87,7 +87,7 @@ def timed_runner(path: Path):
             path.parent.mkdir(parents=True, exist_ok=True)
             path.write_text(json.dumps(spent, indent=1))
 
-    return LocalRunner(job)
+    return LocalJobRunner(job)
 
 
 def cell_cpu_s(path: Path, run: str) -> float | None:

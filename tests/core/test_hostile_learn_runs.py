@@ -158,7 +158,7 @@ def test_a_trial_is_recorded_once_whatever_the_moment_of_the_kill(tmp_path, monk
     killed while it was in flight)."""
     import vistac_learn.tune.driver as D
     from vistac_learn.train.config import protocol_cfg
-    from vistac_learn.train.job import JobResult, LocalRunner
+    from vistac_learn.train.job import JobResult, LocalJobRunner
     from vistac_learn.tune.space import load_space
 
     def job(cfg):
@@ -174,7 +174,7 @@ def test_a_trial_is_recorded_once_whatever_the_moment_of_the_kill(tmp_path, monk
         for name, f in originals.items():
             monkeypatch.setattr(D, name, wrap(f))
         try:
-            D.run_tune(cfg, base, space, runner=LocalRunner(job), progress=False)
+            D.run_tune(cfg, base, space, runner=LocalJobRunner(job), progress=False)
         except _Killed:
             kills += 1
         else:
@@ -183,7 +183,7 @@ def test_a_trial_is_recorded_once_whatever_the_moment_of_the_kill(tmp_path, monk
             for name, f in originals.items():
                 monkeypatch.setattr(D, name, f)
         res = D.run_tune(cfg, base, space, resume=(Path(cfg.out) / "config.json").exists(),
-                         runner=LocalRunner(job), progress=False)
+                         runner=LocalJobRunner(job), progress=False)
         assert [r["trial"] for r in res.rows] == [0, 1, 2, 3], k
         rows = pd.read_csv(Path(cfg.out) / "trials.csv")
         assert rows["trial"].tolist() == [0, 1, 2, 3], k

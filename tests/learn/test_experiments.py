@@ -203,7 +203,7 @@ def test_a_cell_whose_pretrained_run_diverged_is_skipped(tmp_path):
     trained (a fake job stands in for training)."""
     from vistac_learn.experiments.cells import Cell, run_cells
     from vistac_learn.train.config import protocol_cfg
-    from vistac_learn.train.job import JobCfg, JobResult, LocalRunner
+    from vistac_learn.train.job import JobCfg, JobResult, LocalJobRunner
     from vistac_learn.train.loop import TrainingDiverged
 
     ran = []
@@ -219,7 +219,7 @@ def test_a_cell_whose_pretrained_run_diverged_is_skipped(tmp_path):
 
     cells = [cell("b", 1, needs="a"), cell("a"), cell("c", 1, needs="d"), cell("d")]
     rows = run_cells(tmp_path, cells, ("x",), lambda c, r: {"x": r.objective}, lambda rows: None,
-                     LocalRunner(job, (TrainingDiverged,)), progress=False)
+                     LocalJobRunner(job, (TrainingDiverged,)), progress=False)
     assert ran == ["a", "d", "c"]
     assert [(r["cell"], r["status"]) for r in rows] == [
         ("b", "skipped"), ("a", "diverged"), ("c", "ok"), ("d", "ok")]
@@ -267,7 +267,7 @@ def test_the_experiments_api_takes_a_runner(data, tmp_path):
     import vistac
     from vistac_learn.experiments.label_noise import LabelNoiseCfg
     from vistac_learn.experiments.sim2real import Sim2RealCfg
-    from vistac_learn.train.job import LocalRunner, run_job
+    from vistac_learn.train.job import LocalJobRunner, run_job
 
     ran = []
 
@@ -279,9 +279,9 @@ def test_the_experiments_api_takes_a_runner(data, tmp_path):
                                          batch_size=4, device="cpu")
     res = vistac.label_noise(LabelNoiseCfg(data=str(data["real"]), out=str(tmp_path / "ln"),
                                            levels=(0.1,), seeds=1), base,
-                             runner=LocalRunner(job))
+                             runner=LocalJobRunner(job))
     assert len(res.rows) == 1 and ran == [res.rows[0]["run"]]
     res = vistac.sim2real(Sim2RealCfg(sim=str(data["sim"]), real=str(data["real"]),
                                       out=str(tmp_path / "s2r"), fractions=(1.0,), seeds=1),
-                          base, runner=LocalRunner(job))
+                          base, runner=LocalJobRunner(job))
     assert len(res.rows) == 3 and len(ran) == 4

@@ -32,7 +32,7 @@ from vistac.config import to_dict
 from vistac.dataset.files import atomic_write_bytes, atomic_write_json
 from vistac.errors import UserError
 from vistac.progress import bar as progress_bar
-from vistac_learn.train.job import JobCfg, JobResult, LocalRunner
+from vistac_learn.train.job import JobCfg, JobResult, LocalJobRunner
 from vistac_learn.train.loop import TrainingDiverged
 
 CELLS = "cells.csv"
@@ -176,14 +176,14 @@ def run_cells(out: Path, cells: Sequence[Cell], columns: Sequence[str],
         on_rows: Called with the finished rows after each cell (writes the summary, report and
             plots).
         runner: Runs job configs (``run(items)`` yields (position, result)); default
-            `LocalRunner`. A job whose loss diverged is a row with status ``diverged``.
+            `LocalJobRunner`. A job whose loss diverged is a row with status ``diverged``.
         max_cells: Stop after this many new cells (a rerun continues).
         progress: Show a progress bar of cells.
 
     Returns:
         The finished rows, in cell order.
     """
-    runner = runner or LocalRunner()
+    runner = runner or LocalJobRunner()
     path = out / CELLS
     order = {c.key: i for i, c in enumerate(cells)}
     rows = {r["cell"]: r for r in read_rows(path) if r.get("cell") in order}

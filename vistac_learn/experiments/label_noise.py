@@ -191,7 +191,7 @@ def run_label_noise(cfg: LabelNoiseCfg, base: TrainCfg, runner: Any = None,
     Args:
         cfg: The experiment's settings (the dataset path absolute).
         base: The runs' training settings (data, out and seed are set per cell).
-        runner: Runs the training jobs (default `LocalRunner`).
+        runner: Runs the training jobs (default `LocalJobRunner`).
         max_cells: Stop after this many new cells (a rerun continues).
         progress: Show a progress bar.
 

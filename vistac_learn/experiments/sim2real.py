@@ -125,7 +125,7 @@ def run_sim2real(cfg: Sim2RealCfg, base: TrainCfg, runner: Any = None,
     Args:
         cfg: The experiment's settings (dataset paths absolute, see `resolved`).
         base: The runs' training settings (data, out, seed, fraction and init are set per cell).
-        runner: Runs the training jobs (default `LocalRunner`; a Ray runner works alike).
+        runner: Runs the training jobs (default `LocalJobRunner`; a Ray runner works alike).
         max_cells: Stop after this many new cells (a rerun continues).
         progress: Show a progress bar.
 

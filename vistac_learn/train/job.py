@@ -2,7 +2,7 @@
 
 `vistac train`, `vistac tune` and the experiments all run their training through `run_job`, a
 plain top-level function of one picklable config (`JobCfg`), so that a runner can execute jobs
-in this process (`LocalRunner`) or as Ray tasks (`vistac.engine.RayRunner`): the runners of
+in this process (`LocalJobRunner`) or as Ray tasks (`vistac.engine.RayRunner`): the runners of
 `vistac.engine`, one interface (``runner.run(items)`` yields ``(position, result)`` as jobs
 finish; ``runner.concurrency``).
 
@@ -119,7 +119,7 @@ def run_job(cfg: JobCfg) -> JobResult:
                      time.perf_counter() - t0)
 
 
-class LocalRunner(engine.LocalRunner):
+class LocalJobRunner(engine.LocalRunner):
     """Runs training jobs one after the other in this process (`vistac.engine.LocalRunner`,
     whose interface `vistac.engine.RayRunner` shares), by default `run_job` with a diverged
     loss as its result."""

@@ -51,7 +51,7 @@ from vistac.errors import UserError
 from vistac.folder_lock import hold
 from vistac.progress import bar as progress_bar
 from vistac_learn.train.config import TrainCfg
-from vistac_learn.train.job import JobCfg, JobResult, LocalRunner
+from vistac_learn.train.job import JobCfg, JobResult, LocalJobRunner
 from vistac_learn.train.loop import TrainingDiverged
 from vistac_learn.tune.space import SpaceCfg
 
@@ -257,7 +257,7 @@ def run_tune(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool = False
         space: The search space.
         resume: Continue the tuning in ``cfg.out``.
         runner: Runs job configs (``run(items)`` yields (position, result) as jobs finish;
-            ``concurrency`` jobs at once); default `LocalRunner`, one at a time here.
+            ``concurrency`` jobs at once); default `LocalJobRunner`, one at a time here.
         progress: Show a progress bar of trials.
 
     Returns:
@@ -276,7 +276,7 @@ def run_tune_held(cfg: TuneCfg, base: TrainCfg, space: SpaceCfg, resume: bool = 
     """`run_tune` for a caller that holds ``cfg.out``'s lock already (`vistac.folder_lock`)."""
     from vistac_learn.tune.plots import plot_convergence
 
-    runner = runner or LocalRunner()
+    runner = runner or LocalJobRunner()
     out = Path(cfg.out)
     meta = _meta(cfg, base, space)
     _check_folder(cfg, meta, resume)

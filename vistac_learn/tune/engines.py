@@ -54,11 +54,11 @@ def tune_runner(engine: EngineCfg, base: TrainCfg, trial: TrialCfg = TrialCfg(),
     Raises:
         UserError: Ray missing, the cluster unreachable, bad data.
     """
-    from vistac_learn.train.job import LocalRunner, run_job
+    from vistac_learn.train.job import LocalJobRunner, run_job
     from vistac_learn.train.loop import TrainingDiverged
 
     if engine.engine == "local":
-        yield LocalRunner(run_job, (TrainingDiverged,))
+        yield LocalJobRunner(run_job, (TrainingDiverged,))
         return
     warm_fingertip_cache(base, progress)
     with ray_session(engine) as ray:
