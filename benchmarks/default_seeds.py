@@ -3,7 +3,7 @@
 For each seed, the default recipe (`vistac train --data D --out R --finger both --seed S`, no
 other option) is trained, or an existing run is given with ``--run SEED=FOLDER``, and scored
 on the test split twice: as `vistac evaluate --run R` does by default (the recipe's mirrored
-view averaged in) and with ``--no-tta``. The noise floor and the pinch baseline of the same
+view averaged in) and with ``--tta off``. The noise floor and the pinch baseline of the same
 configurations stand beside them (`vistac_learn.evaluate.references`). Training wall and CPU
 seconds are recorded for runs this script trains.
 
@@ -50,7 +50,7 @@ def main() -> None:
             times[seed] = {"wall_s": time.perf_counter() - t0, "cpu_s": cpu_s() - c0}
         epochs = vistac.Run.open(run).config["train"]["epochs"]
         for tta in (True, False):
-            ev = vistac.evaluate(run, tta=tta, no_tta=not tta, no_plots=True,
+            ev = vistac.evaluate(run, tta="on" if tta else "off", no_plots=True,
                                  no_references=True, out=str(run / "eval" / f"seeds-tta{tta:d}"))
             rows.append({"seed": seed, "tta": tta, "epochs": epochs, "run": str(run),
                          **{f: ev.metrics[f][METRIC] for f in ("index", "thumb")}})
@@ -60,7 +60,7 @@ def main() -> None:
     for tta in (True, False):
         sel = [r for r in rows if r["tta"] == tta]
         label = "default recipe" + (" (as evaluated: mirrored view averaged)" if tta
-                                    else ", --no-tta")
+                                    else ", --tta off")
         for r in sel:
             lines.append(f"| {label} | {r['seed']} | {r['index']:.3f} | {r['thumb']:.3f} |")
         lines.append(f"| {label} | mean | {np.mean([r['index'] for r in sel]):.3f} | "

@@ -33,7 +33,7 @@ import torch
 import vistac
 from vistac.dataset import SplitCfg, open_dataset
 from vistac.provenance import provenance
-from vistac_learn.data.samples import RotationCfg
+from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.metrics.scoring import ANGLE_COLUMNS, STUDY_COLUMNS
 from vistac_learn.models import model_info
@@ -99,7 +99,7 @@ def run_protocol(args: argparse.Namespace) -> dict:
             train(cfg, resume=(run / "checkpoints" / "last.pt").exists(),
                   progress=not args.quiet)
         rows = _epoch_rows(run)
-        res = evaluate_run(run, split="test", device="cpu")
+        res = evaluate_run(EvaluateCfg(run=str(run), device="cpu"))
         info = model_info(name, 1, 2)
         entries.append({
             "label": info.get("display", name), "model": name, "kind": "model",
@@ -112,8 +112,8 @@ def run_protocol(args: argparse.Namespace) -> dict:
             "input_size": info["input_size"],
         })
     print("== geometric baseline", flush=True)
-    bl = evaluate_baseline(data, out / "baseline", split="test", finger="index",
-                           rotations=RotationCfg("fixed", args.n_rotations, 18.0))
+    bl = evaluate_baseline(EvaluateCfg(baseline="geometric", data=str(data), rotations="fixed",
+                                       n_rotations=args.n_rotations), out / "baseline")
     entries.append({"label": "geometric baseline (non-learned)", "model": "geometric",
                     "kind": "baseline", "metrics": bl["metrics"]["index"],
                     "train_s_per_epoch": None, "images_per_s": bl["images_per_s"],

@@ -19,7 +19,7 @@ import numpy as np
 import vistac
 from vistac.dataset import FINGERS, SplitCfg, open_dataset
 from vistac.provenance import provenance
-from vistac_learn.data.samples import RotationCfg
+from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.references import LABELS, references
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.metrics import cone_metrics
@@ -122,8 +122,8 @@ def run_entry(data: Path, out: Path, label: str, protocol: str = "default",
     if scored.exists() and scored.stat().st_mtime > best.stat().st_mtime:
         res = json.loads(scored.read_text())
     else:
-        res = evaluate_run(run, split="test", make_plots=False, device="cpu",
-                           max_missing_pct=cfg.max_missing_pct)
+        res = evaluate_run(EvaluateCfg(run=str(run), no_plots=True, device="cpu",
+                                       max_missing_pct=cfg.max_missing_pct))
     rows = _epoch_rows(run)
     meta = json.loads((run / "config.json").read_text())
     return {"label": label, "kind": "model", "protocol": protocol, "model": cfg.model,
@@ -140,8 +140,8 @@ def run_entry(data: Path, out: Path, label: str, protocol: str = "default",
 def baseline_entry(data: Path, out: Path, fingers=FINGERS) -> dict:
     """The geometric baseline on the unrotated test images."""
     finger = "both" if len(fingers) == 2 else fingers[0]
-    res = evaluate_baseline(data, out / "baseline", split="test", finger=finger,
-                            rotations=RotationCfg("none"), make_plots=False)
+    res = evaluate_baseline(EvaluateCfg(baseline="geometric", data=str(data), finger=finger,
+                                        rotations="none", no_plots=True), out / "baseline")
     return {"label": "geometric baseline (non-learned)", "kind": "baseline",
             "fingers": res["fingers"], "metrics": res["metrics"], "macs": None,
             "train_s": 0.0, "images_per_s": res["images_per_s"], "failures": res["failures"]}

@@ -55,6 +55,7 @@ from vistac_learn.data.fingertip_table import (
     fingertip_table,
     simulator_fingertips,
 )
+from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.references import LABELS
 from vistac_learn.evaluate.run import evaluate_run
 from vistac_learn.metrics.scoring import score
@@ -138,8 +139,8 @@ def scored(run: Path, data: Path, name: str) -> dict:
     path, best = out / "metrics.json", run / "checkpoints" / "best.pt"
     if path.exists() and path.stat().st_mtime > best.stat().st_mtime:
         return json.loads(path.read_text())
-    return evaluate_run(run, data=data, out=out, make_plots=False, device="cpu",
-                        cross_dataset=True)
+    return evaluate_run(EvaluateCfg(run=str(run), data=str(data), no_plots=True, device="cpu",
+                                    cross_dataset=True), out)
 
 
 def split_of_the_rest(run: Path, photo: Path) -> dict:

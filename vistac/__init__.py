@@ -42,7 +42,7 @@ _LAZY = {
     "IngestCfg": "vistac.dataset.ingest.config",
     "IngestSources": "vistac.dataset.ingest.config",
     "TrainCfg": "vistac_learn.train.config",
-    "EvaluateCfg": "vistac_learn.evaluate.command",
+    "EvaluateCfg": "vistac_learn.evaluate.config",
     "TrialCfg": "vistac_learn.tune.engines",
     "Sim2RealCfg": "vistac_learn.experiments.sim2real",
     "LabelNoiseCfg": "vistac_learn.experiments.label_noise",

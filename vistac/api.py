@@ -45,7 +45,7 @@ from vistac.outputs import Dataset, Evaluation, Report, Run
 if TYPE_CHECKING:  # the configs live beside the code that uses them
     from vistac.dataset.ingest.config import IngestCfg, IngestSources
     from vistac.engine import EngineCfg
-    from vistac_learn.evaluate.command import EvaluateCfg
+    from vistac_learn.evaluate.config import EvaluateCfg
     from vistac_learn.experiments.label_noise import LabelNoiseCfg
     from vistac_learn.experiments.sim2real import Sim2RealCfg
     from vistac_learn.train.config import TrainCfg
@@ -187,9 +187,10 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
             baseline: ``EvaluateCfg(baseline="geometric", data=D, out=O)``).
         progress: Progress bars on stderr.
         **options: Fields of `EvaluateCfg` when `target` is a run: ``split`` ("test"),
-            ``tta`` / ``no_tta`` (default: as the run's recipe says), ``checkpoint``,
-            ``data``, ``out``, ``no_plots``, ``device``,
-            ``cross_dataset``.
+            ``tta`` ("recipe": as the run's recipe says; "on"; "off"), ``checkpoint``,
+            ``data``, ``out`` (default `EvaluateCfg.out_dir`: ``<run>/eval/<split>``, with
+            ``-tta`` for ``tta="on"``, ``-no-tta`` for ``tta="off"``), ``no_plots``,
+            ``device``, ``cross_dataset``, ``max_missing_pct``, ``no_references``.
 
     Returns:
         The score; ``.metrics`` is ``metrics.json``'s ``"metrics"``, ``.table`` the study's
@@ -201,7 +202,7 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
     """
     from vistac.dataset import read_manifest
     from vistac.dataset.files import check_out_dir
-    from vistac_learn.evaluate.command import EvaluateCfg
+    from vistac_learn.evaluate.config import EvaluateCfg
 
     if isinstance(target, EvaluateCfg):
         if options:
@@ -225,20 +226,10 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
 
 
 def _score(cfg: EvaluateCfg, out: Path, progress: bool) -> dict:
-    from vistac_learn.data.samples import RotationCfg
     from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 
-    if cfg.baseline:
-        res = evaluate_baseline(cfg.data, out, cfg.split, cfg.finger,
-                                RotationCfg(cfg.rotations, cfg.n_rotations), cfg.tta,
-                                not cfg.no_plots, progress=progress,
-                                max_missing_pct=cfg.max_missing_pct, baseline=cfg.baseline)
-    else:
-        res = evaluate_run(cfg.run, cfg.data, cfg.split, cfg.run_tta, cfg.checkpoint, out,
-                           not cfg.no_plots, cfg.device, progress=progress,
-                           cross_dataset=cfg.cross_dataset, max_missing_pct=cfg.max_missing_pct,
-                           references=not cfg.no_references)
-    return res
+    score = evaluate_baseline if cfg.baseline else evaluate_run
+    return score(cfg, out, progress=progress)
 
 
 def tune(base: TrainCfg, data: str | Path, out: str | Path, *, trials: int = 20,

@@ -57,7 +57,7 @@ def run_demo(cfg: DemoCfg, progress: bool = True) -> Path:
     `progress`: their progress on stderr.
     """
     from vistac import api
-    from vistac_learn.evaluate.command import EvaluateCfg
+    from vistac_learn.evaluate.config import EvaluateCfg
     from vistac_learn.train.config import TrainCfg
     from vistac_sim.generate.config import GenerateCfg
 

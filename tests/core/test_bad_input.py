@@ -180,7 +180,7 @@ CASES = [
     Case("train-max-missing-pct", T + " --max-missing-pct -1", "--max-missing-pct"),
     Case("train-aux-weight", T + " --aux-weight -1", "--aux-weight"),
     Case("train-loader-workers", T + " --loader-workers -1", "--loader-workers"),
-    Case("eval-tta-both", E + " --tta --no-tta", "--tta"),
+    Case("eval-tta", E + " --tta both", "--tta"),
     # ------------------------------------------------------------------ demo
     Case("demo-model", D + " --model nope", "--model"),
     Case("demo-n-1", D + " --n 1", "--n"),

@@ -21,6 +21,7 @@ from vistac.cli import main
 from vistac.dataset import open_dataset
 from vistac.errors import UserError
 from vistac_learn.data.fingertip_table import fingertip_table
+from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.run import evaluate_run
 from vistac_learn.metrics import cone_metrics
 from vistac_learn.models.tipnet import apply_model
@@ -87,7 +88,7 @@ NO_APPEARANCE = dict(appearance=0.0)
 def test_default_training_beats_a_mean_predictor(generated, tmp_path):
     run = train(protocol_cfg("default", str(generated), str(tmp_path / "run"), epochs=25,
                              batch_size=16, device="cpu", **NO_APPEARANCE), progress=False)
-    res = evaluate_run(run, split="test", make_plots=False)
+    res = evaluate_run(EvaluateCfg(run=str(run), no_plots=True))
     t = open_dataset(generated)
     for f in ("index", "thumb"):
         mean = t.mean_label(f)[t.rows("train")].mean(0)
@@ -101,25 +102,27 @@ def test_default_training_beats_a_mean_predictor(generated, tmp_path):
 
 def test_the_recipe_says_whether_evaluation_averages_the_mirrored_view(generated, tmp_path):
     """The default recipe is evaluated with its mirrored view averaged in (`TrainCfg.tta`);
-    --no-tta turns it off, --tta on for a run whose recipe has it off, a run written before
-    the setting existed is evaluated as it was (without), and both switches at once are
-    refused."""
+    ``tta="off"`` (--tta off) turns it off, ``"on"`` on for a run whose recipe has it off, a
+    run written before the setting existed is evaluated as it was (without); each choice has
+    its own default folder, and a value other than the three is refused."""
     import vistac
 
     run = train(protocol_cfg("default", str(generated), str(tmp_path / "run"), epochs=1,
                              batch_size=16, device="cpu"), progress=False)
-    on = evaluate_run(run, split="test", make_plots=False, references=False)
-    off = vistac.evaluate(run, no_tta=True, no_plots=True, no_references=True).result
-    assert on["tta"] and not off["tta"]
-    assert on["metrics"]["index"] != off["metrics"]["index"]  # the mirror changes the scores
-    assert vistac.evaluate(run, tta=True, no_plots=True,
-                           no_references=True).metrics == on["metrics"]
-    with pytest.raises(UserError, match="--tta or --no-tta"):
-        vistac.evaluate(run, tta=True, no_tta=True)
+    on = evaluate_run(EvaluateCfg(run=str(run), no_plots=True, no_references=True))
+    off = vistac.evaluate(run, tta="off", no_plots=True, no_references=True)
+    assert on["tta"] and not off.result["tta"]
+    assert on["metrics"]["index"] != off.result["metrics"]["index"]  # the mirror changes them
+    forced = vistac.evaluate(run, tta="on", no_plots=True, no_references=True)
+    assert forced.metrics == on["metrics"]
+    assert (run / "eval" / "test" / "metrics.json").is_file()
+    assert (off.path.name, forced.path.name) == ("test-no-tta", "test-tta")
+    with pytest.raises(UserError, match="tta: expected one of 'recipe', 'on', 'off'"):
+        vistac.evaluate(run, tta=True)
     meta = json.loads((run / "config.json").read_text())
     del meta["train"]["tta"], meta["train"]["appearance"]  # a run of an earlier version
     (run / "config.json").write_text(json.dumps(meta))
-    assert not evaluate_run(run, split="test", make_plots=False, references=False)["tta"]
+    assert not evaluate_run(EvaluateCfg(run=str(run), no_plots=True, no_references=True))["tta"]
     from vistac_learn.train.run_files import read_run_config, run_settings
 
     assert run_settings(run, read_run_config(run, ""), "").appearance == 0.0  # trained without
@@ -189,8 +192,9 @@ def test_a_run_is_tied_to_its_dataset(generated, tmp_path, capsys):
         train(protocol_cfg("default", str(other), str(run), epochs=2, device="cpu"),
               resume=True, progress=False)
     with pytest.raises(UserError, match="--cross-dataset"):
-        evaluate_run(run, data=other, make_plots=False)
-    res = evaluate_run(run, data=other, split="test", make_plots=False, cross_dataset=True)
+        evaluate_run(EvaluateCfg(run=str(run), data=str(other), no_plots=True))
+    res = evaluate_run(EvaluateCfg(run=str(run), data=str(other), no_plots=True,
+                                   cross_dataset=True))
     assert res["data"] == str(other.resolve())
 
 

@@ -8,6 +8,7 @@ import pytest
 import vistac
 from vistac.dataset import open_dataset
 from vistac_learn.data.samples import RotationCfg
+from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.geometric import baseline_predictions
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.train.config import protocol_cfg
@@ -26,7 +27,7 @@ def test_generated_dataset_trains_and_evaluates(generated, tmp_path):
     cfg = protocol_cfg("study", str(generated), str(tmp_path / "run"), model="smallconv",
                        epochs=1, n_rotations=2, device="cpu", cache_dir=str(tmp_path / "cache"))
     run = train(cfg, progress=False)
-    res = evaluate_run(run, split="test")
+    res = evaluate_run(EvaluateCfg(run=str(run)))
     s = res["metrics"]["index"]
     assert res["n_predictions"] == 2 * res["n_configs"]
     assert all(np.isfinite(v) for v in s.values())
@@ -45,6 +46,8 @@ def test_geometric_baseline_reads_the_simulated_normal(generated, tmp_path):
         p = pred[:, 2 * i:2 * i + 2]
         err = np.degrees(np.abs(np.arctan2(p[:, 0], -p[:, 1]) - np.arctan2(n[:, 0], -n[:, 1])))
         assert np.median(err) < 5.0, f
-    res = evaluate_baseline(generated, tmp_path / "bl", split="all", finger="index",
-                            rotations=RotationCfg("fixed", n=2), make_plots=False)
+    # the largest split (a non-learned baseline has no training)
+    res = evaluate_baseline(EvaluateCfg(baseline="geometric", data=str(generated),
+                                        split="train", rotations="fixed", n_rotations=2,
+                                        no_plots=True), tmp_path / "bl")
     assert res["metrics"]["index"]["correct_y_pct"] > 70

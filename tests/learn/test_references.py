@@ -14,9 +14,9 @@ from learn_fixtures import INDEX_RGB, TABLE, THUMB_RGB, make_dataset
 
 from vistac.cli import main
 from vistac.dataset import open_dataset
-from vistac_learn.data.samples import RotationCfg
 from vistac_learn.data.variants import rotation_matrix
 from vistac_learn.evaluate import references as refs_mod
+from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.geometric import sensor_direction
 from vistac_learn.evaluate.pinch import clamp_to_cone, predict_image
 from vistac_learn.evaluate.references import has_clean_forces, noise_floor, references
@@ -173,7 +173,7 @@ def tiny_run(tmp_path_factory):
 
 def test_evaluate_shows_the_references_beside_the_model(tiny_run, monkeypatch):
     ds, run = tiny_run
-    res = evaluate_run(run, split="test", make_plots=False)
+    res = evaluate_run(EvaluateCfg(run=str(run), no_plots=True))
     saved = json.loads((run / "eval" / "test" / "metrics.json").read_text())
     assert set(saved["metrics"]) == {"index", "thumb"}  # the contract's layout, unchanged
     for r in (res, saved):
@@ -186,9 +186,9 @@ def test_evaluate_shows_the_references_beside_the_model(tiny_run, monkeypatch):
             assert label in r["table"]
     # the pinch reference is cached: a second evaluation does not run the baseline again
     monkeypatch.setattr(refs_mod, "pinch_predictions", lambda *a, **k: pytest.fail("recomputed"))
-    again = evaluate_run(run, split="test", make_plots=False)
+    again = evaluate_run(EvaluateCfg(run=str(run), no_plots=True))
     assert again["references"]["pinch"] == res["references"]["pinch"]
-    bare = evaluate_run(run, split="test", make_plots=False, references=False)
+    bare = evaluate_run(EvaluateCfg(run=str(run), no_plots=True, no_references=True))
     assert "references" not in bare and "noise floor" not in bare["table"]
 
 
@@ -211,9 +211,10 @@ def test_demo_report_shows_the_references(tiny_run, tmp_path):
     from vistac_learn.evaluate.run import evaluate_baseline
 
     ds, run = tiny_run
-    evaluate_run(run, split="test", make_plots=False)
-    evaluate_baseline(ds, tmp_path / "baseline", split="test", finger="both",
-                      rotations=RotationCfg("none", 1), make_plots=False)
+    evaluate_run(EvaluateCfg(run=str(run), no_plots=True))
+    evaluate_baseline(EvaluateCfg(baseline="geometric", data=str(ds), finger="both",
+                                  rotations="none", n_rotations=1, no_plots=True),
+                      tmp_path / "baseline")
     data = tmp_path / "data"  # the report reads the counts a generated manifest holds
     shutil.copytree(ds, data)
     manifest = json.loads((data / "manifest.json").read_text())

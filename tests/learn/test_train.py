@@ -13,7 +13,7 @@ from learn_fixtures import make_dataset
 
 from vistac.cli import main
 from vistac.errors import UserError
-from vistac_learn.data.samples import RotationCfg
+from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.loop import train
@@ -107,7 +107,7 @@ def test_evaluate_run_tta_and_baseline(ds_dir, tmp_path, capsys):
     run = train(_cfg(ds_dir, tmp_path / "run", variant="edge-crop", finger="both", epochs=1,
                      select="in_cone_pct"), progress=False)
     capsys.readouterr()
-    res = evaluate_run(run, split="test")
+    res = evaluate_run(EvaluateCfg(run=str(run)))  # the study recipe: tta off
     assert capsys.readouterr().out == ""  # the library returns its results, the CLI prints
     out = run / "eval" / "test"
     for name in ("metrics.json", "predictions.parquet", "cones_index.png", "cones_thumb.png",
@@ -115,15 +115,15 @@ def test_evaluate_run_tta_and_baseline(ds_dir, tmp_path, capsys):
         assert (out / name).exists(), name
     assert res["n_predictions"] == 2 * 3 and set(res["metrics"]) == {"index", "thumb"}
     assert "| % correct y | % in cone | median err overall" in res["table"]
-    tta = evaluate_run(run, split="test", tta=True, make_plots=False)
+    tta = evaluate_run(EvaluateCfg(run=str(run), tta="on", no_plots=True))
     assert tta["n_predictions"] == 2 and tta["tta"]
     # TTA: each configuration's rotations and their mirrors (r_y negated back), averaged
     plain = pd.read_parquet(out / "predictions.parquet")
     both = pd.read_parquet(run / "eval" / "test-tta" / "predictions.parquet")
     assert not np.allclose(both["pred_index_y"], plain.groupby("config_id")["pred_index_y"]
                            .mean().loc[both["config_id"]].to_numpy())
-    bl = evaluate_baseline(ds_dir, tmp_path / "bl", split="test", finger="index",
-                           rotations=RotationCfg("fixed", 20, 18.0))
+    bl = evaluate_baseline(EvaluateCfg(baseline="geometric", data=str(ds_dir),
+                                       rotations="fixed", n_rotations=20), tmp_path / "bl")
     assert bl["n_predictions"] == 2 * 20 and bl["failures"] == 0
     assert np.isfinite(list(bl["metrics"]["index"].values())).all()
 

@@ -11,8 +11,9 @@ per-prediction values and the figures, into an output folder:
 - ``cones_<finger>.png``, ``error_hist_<finger>.png``, ``rotation_spread_<finger>.png``.
 
 Every (configuration, rotation) pair is one prediction, as in the study (34 x 20 = 680 test
-pairs). With ``--tta`` the raw predictions of a configuration's rotations are averaged first
-(test-time augmentation), one prediction per configuration.
+pairs). With test-time augmentation (``--tta``; a run's recipe may turn it on) the raw
+predictions of a configuration's rotations (and, for a run, of its mirrored view) are averaged
+first, one prediction per configuration.
 """
 
 from __future__ import annotations
@@ -33,8 +34,9 @@ from vistac.errors import UserError, brief
 from vistac.folder_kinds import EVALUATION, mark
 from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.data.samples import RotationCfg, fingers_of
-from vistac_learn.data.tip_coverage import MAX_MISSING_PCT, tip_coverage
+from vistac_learn.data.tip_coverage import tip_coverage
 from vistac_learn.evaluate import plots
+from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.geometric import GeometricCfg, baseline_predictions
 from vistac_learn.evaluate.pinch import PinchCfg, pinch_predictions
 from vistac_learn.evaluate.references import has_clean_forces, noise_floor, reference_entries
@@ -167,39 +169,26 @@ def run_dataset(meta: dict, data: str | Path | None, cross_dataset: bool):
     return tables
 
 
-def evaluate_run(
-    run: str | Path,
-    data: str | Path | None = None,
-    split: str = "test",
-    tta: bool | None = None,
-    checkpoint: str = "best",
-    out: str | Path | None = None,
-    make_plots: bool = True,
-    device: str | None = None,
-    progress: bool = False,
-    cross_dataset: bool = False,
-    max_missing_pct: float = MAX_MISSING_PCT,
-    references: bool = True,
-) -> dict:
+def evaluate_run(cfg: EvaluateCfg, out: str | Path | None = None, *,
+                 progress: bool = False) -> dict:
     """Score a run's model on a split, beside the references (noise floor, pinch baseline).
 
     Args:
-        run: Run folder.
-        data: Dataset to score on (default: the run's training dataset).
-        split: Split to score.
-        tta: Test-time augmentation: average each configuration's rotations (study views) and
-            its mirrored view (r_y of the mirror negated); None: as the run's recipe says
-            (`TrainCfg.tta`: on for the default recipe, off for the study's protocol).
-        checkpoint: ``best`` (validation-selected) or ``last``.
-        out: Output folder (default ``<run>/eval/<split>[-tta]``).
-        make_plots: Write the PNG figures.
-        device: Override the run's device.
+        cfg: What to score (`EvaluateCfg` with `run`): ``run``, ``data`` (default: the run's
+            training dataset), ``split``, ``tta`` (``recipe``: as the run's `TrainCfg.tta` says,
+            on for the default recipe, off for the study's protocol; ``on``: average each
+            configuration's rotations and its mirrored view, r_y of the mirror negated;
+            ``off``: neither), ``checkpoint`` (``best``, validation-selected, or ``last``),
+            ``no_plots``, ``device`` (override the run's), ``cross_dataset`` (allow a dataset
+            other than the run's, see `run_dataset`), ``max_missing_pct`` (refuse a split of
+            which more than this share (%) of the configurations has a fingertip the locator
+            does not find; tip view), ``no_references`` (skip the noise floor and the pinch
+            baseline, `vistac_learn.evaluate.references`; skipped anyway for data without
+            clean forces).
+        out: Output folder (default `cfg.out_dir`: ``cfg.out``, else
+            `vistac_learn.evaluate.config.default_out_dir`: ``<run>/eval/<split>``, with
+            ``-tta`` after it for ``tta="on"`` and ``-no-tta`` for ``tta="off"``).
         progress: Show progress bars.
-        cross_dataset: Allow a dataset other than the run's (see `run_dataset`).
-        max_missing_pct: Refuse a split of which more than this share (%) of the
-            configurations has a fingertip the locator does not find (tip view).
-        references: Score the noise floor and the pinch baseline on the same configurations
-            (`vistac_learn.evaluate.references`; skipped for data without clean forces).
 
     Returns:
         The content of ``metrics.json``.
@@ -207,103 +196,103 @@ def evaluate_run(
     Raises:
         UserError: a damaged run or dataset, too many fingertips not found.
     """
-    cfg, meta = load_run(run)
-    tta = cfg.tta if tta is None else tta
-    dev = resolve_device(device or cfg.device)
-    tables = run_dataset(meta, data, cross_dataset)
-    cfg = dataclasses.replace(cfg, data=str(tables.root))
-    model, epoch = load_model(run, cfg, checkpoint, dev)
-    size = input_size(cfg, model)
-    tips = fingertip_table(tables, cache_dir=cfg.cache_dir, progress=progress) \
-        if build_view(cfg).needs_tips else None
+    if cfg.run is None:
+        raise UserError("evaluate_run: the config names no run (a baseline's goes to "
+                        "evaluate_baseline)")
+    run, split, checkpoint = Path(cfg.run), cfg.split, cfg.checkpoint
+    train_cfg, meta = load_run(run)
+    tta = cfg.averaged(train_cfg.tta)
+    dev = resolve_device(cfg.device or train_cfg.device)
+    tables = run_dataset(meta, cfg.data, cfg.cross_dataset)
+    train_cfg = dataclasses.replace(train_cfg, data=str(tables.root))
+    model, epoch = load_model(run, train_cfg, checkpoint, dev)
+    size = input_size(train_cfg, model)
+    tips = fingertip_table(tables, cache_dir=train_cfg.cache_dir, progress=progress) \
+        if build_view(train_cfg).needs_tips else None
     coverage = None
     if tips is not None:
-        coverage = tip_coverage(tables, tips, tables.rows(split), fingers_of(cfg.finger), split)
-        coverage.check(max_missing_pct)
-    ds = build_samples(cfg, tables, split, size, tips)
+        coverage = tip_coverage(tables, tips, tables.rows(split), fingers_of(train_cfg.finger),
+                                split)
+        coverage.check(cfg.max_missing_pct)
+    ds = build_samples(train_cfg, tables, split, size, tips)
     t0 = time.perf_counter()
     if tta:
         pred = predict_mirror_averaged(
-            model, lambda mirror: build_samples(cfg, tables, split, size, tips, mirror=mirror)
-            if mirror else ds, dev, cfg.eval_batch_size)
+            model, lambda mirror: build_samples(train_cfg, tables, split, size, tips,
+                                                mirror=mirror) if mirror else ds,
+            dev, train_cfg.eval_batch_size)
     else:
-        pred = predict(model, ds, dev, cfg.eval_batch_size)
+        pred = predict(model, ds, dev, train_cfg.eval_batch_size)
     elapsed = time.perf_counter() - t0
     item_row, item_rot = ds.item_row, ds.item_rot
     if tta:
         pred, item_row = average_over_rotations(pred, item_row)
         item_rot = np.full(len(item_row), -1)
     lost = {f: (tips.failures(ds.rows, f) if tips is not None else 0) for f in ds.fingers}
-    info = {"kind": "model", "run": str(Path(run).resolve()), "model": cfg.model,
-            "variant": cfg.variant, "data": str(tables.root.resolve()),
+    info = {"kind": "model", "run": str(run.resolve()), "model": train_cfg.model,
+            "variant": train_cfg.variant, "data": str(tables.root.resolve()),
             "fingerprint": tables.fingerprint(), "split": split, "tta": tta,
             "checkpoint": checkpoint, "epoch": epoch, "device": str(dev),
             "images_per_s": len(ds) * (2 if tta else 1) / max(elapsed, 1e-9),
             "n_rotations": ds.rotations.count, "fingers_not_found": lost,
             "fingertips": coverage.as_dict() if coverage is not None else None,
             "fingertips_line": coverage.line() if coverage is not None else None}
-    out = Path(out) if out is not None else Path(run) / "eval" / (split + ("-tta" if tta else ""))
-    label = f"{cfg.model}, {cfg.variant}" + (", TTA" if tta else "")
-    fingers = fingers_of(cfg.finger)
-    refs = reference_scores(tables, ds.rows, fingers, cache_dir=cfg.cache_dir,
-                            progress=progress) if references else None
+    out = Path(out) if out is not None else cfg.out_dir
+    label = f"{train_cfg.model}, {train_cfg.variant}" + (", TTA" if tta else "")
+    fingers = fingers_of(train_cfg.finger)
+    refs = reference_scores(tables, ds.rows, fingers, cache_dir=train_cfg.cache_dir,
+                            progress=progress) if not cfg.no_references else None
     return _write_outputs(out, label, pred, tables, ds.rows, item_row, item_rot, fingers, info,
-                          make_plots, refs)
+                          not cfg.no_plots, refs)
 
 
-def evaluate_baseline(
-    data: str | Path,
-    out: str | Path,
-    split: str = "test",
-    finger: str = "index",
-    rotations: RotationCfg | None = None,
-    tta: bool = False,
-    make_plots: bool = True,
-    cfg: GeometricCfg | PinchCfg | None = None,
-    progress: bool = False,
-    max_missing_pct: float = MAX_MISSING_PCT,
-    baseline: str = "geometric",
-) -> dict:
+def evaluate_baseline(cfg: EvaluateCfg, out: str | Path | None = None, *,
+                      progress: bool = False,
+                      settings: GeometricCfg | PinchCfg | None = None) -> dict:
     """Score a non-learned baseline on a split (same metrics and outputs as `evaluate_run`),
     beside the noise floor on simulated data.
 
     Args:
-        data: Dataset directory.
-        out: Output folder.
-        split: Split to score.
-        finger: ``index``, ``thumb`` or ``both``.
-        rotations: Rotations of each image it is applied to, as the models see them (default
-            the study's 20 fixed angles).
-        tta: Average each configuration's rotations before scoring.
-        make_plots: Write the PNG figures.
-        cfg: Baseline settings (default `GeometricCfg()` or `PinchCfg()`).
+        cfg: What to score (`EvaluateCfg` with `baseline` and `data`): ``baseline``
+            (``geometric``: surface normal, `evaluate.geometric`; ``pinch``: closing axis and
+            friction cone, `evaluate.pinch`), ``data``, ``split``, ``finger`` (``index``,
+            ``thumb`` or ``both``), ``rotations`` and ``n_rotations`` (the rotations of each
+            image it is applied to, as the models see them), ``tta`` (``on``: average each
+            configuration's rotations before scoring; ``recipe``, there being none, and
+            ``off``: not), ``no_plots``, ``max_missing_pct`` (refuse a split of which more
+            than this share (%) of the configurations has a fingertip the locator does not
+            find).
+        out: Output folder (default `cfg.out_dir`: ``cfg.out``, else
+            `vistac_learn.evaluate.config.default_out_dir`: ``<data>/eval/<baseline>-<split>``,
+            with ``-tta`` after it for ``tta="on"`` and ``-no-tta`` for ``tta="off"``).
         progress: Show a progress bar.
-        max_missing_pct: Refuse a split of which more than this share (%) of the
-            configurations has a fingertip the locator does not find.
-        baseline: ``geometric`` (surface normal, `evaluate.geometric`) or ``pinch`` (closing
-            axis and friction cone, `evaluate.pinch`).
+        settings: Baseline settings (default `GeometricCfg()` or `PinchCfg()`).
 
     Returns:
         The content of ``metrics.json``.
     """
-    rotations = rotations or RotationCfg()
-    if baseline not in BASELINES:
-        raise UserError(f"--baseline must be {' or '.join(BASELINES)}, not {baseline!r}")
-    cfg = cfg or BASELINES[baseline][0]()
+    baseline, data, split = cfg.baseline, cfg.data, cfg.split
+    if baseline is None:
+        raise UserError("evaluate_baseline: the config names no baseline (a run's goes to "
+                        "evaluate_run)")
+    rotations = RotationCfg(cfg.rotations, cfg.n_rotations)
+    tta = cfg.averaged()
+    out = Path(out) if out is not None else cfg.out_dir
+    bcfg = settings or BASELINES[baseline][0]()
     tables = open_dataset(data)
-    fingers = fingers_of(finger)
+    fingers = fingers_of(cfg.finger)
     rows = tables.rows(split)
-    coverage = tip_coverage(tables, fingertip_table(tables, cfg.locator, progress=progress),
+    coverage = tip_coverage(tables, fingertip_table(tables, bcfg.locator, progress=progress),
                             rows, fingers, split)
-    coverage.check(max_missing_pct)
+    coverage.check(cfg.max_missing_pct)
     t0 = time.perf_counter()
     pred, item_row, item_rot, failures = BASELINES[baseline][1](
-        tables, rows, fingers, rotations, cfg, progress)
+        tables, rows, fingers, rotations, bcfg, progress)
     elapsed = time.perf_counter() - t0
     if tta:
         pred, item_row = average_over_rotations(pred, item_row)
         item_rot = np.full(len(item_row), -1)
-    info = {"kind": "baseline", "baseline": baseline, "settings": dataclasses.asdict(cfg),
+    info = {"kind": "baseline", "baseline": baseline, "settings": dataclasses.asdict(bcfg),
             "data": str(data), "split": split, "tta": tta, "failures": failures,
             "fingertips": coverage.as_dict(), "fingertips_line": coverage.line(),
             "images_per_s": len(rows) * rotations.count / max(elapsed, 1e-9),
@@ -311,5 +300,5 @@ def evaluate_baseline(
     refs = ({"noise_floor": {"metrics": noise_floor(tables, rows, fingers)}}
             if has_clean_forces(tables, fingers) else None)
     label = f"{baseline} baseline" + (", TTA" if tta else "")
-    return _write_outputs(Path(out), label, pred, tables, rows, item_row, item_rot, fingers,
-                          info, make_plots, refs)
+    return _write_outputs(out, label, pred, tables, rows, item_row, item_rot, fingers,
+                          info, not cfg.no_plots, refs)

@@ -24,8 +24,8 @@ from vistac_learn.inspect.arrows import finger_arrows, has_simulator_tips
 
 
 def find_evaluation(run: Path, split: str = "test") -> Path:
-    """The newest evaluation folder of `run` on `split` (``eval/<split>`` or
-    ``eval/<split>-tta``).
+    """The newest evaluation folder of `run` on `split` (``eval/<split>``, ``eval/<split>-tta``
+    or ``eval/<split>-no-tta``: `vistac_learn.evaluate.config.default_out_dir`).
 
     Raises:
         UserError: the run has none (how to make one in the message).

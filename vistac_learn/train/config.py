@@ -82,7 +82,7 @@ class TrainCfg(Config):
                           "multiple of the default (0.1 radius, 2 deg, 5 %%); 0 switches it off")
     tta: bool = param(True, help="the recipe's test-time augmentation: `vistac evaluate` "
                       "averages each configuration's mirrored view (and rotations) unless told "
-                      "otherwise (--tta / --no-tta there)")
+                      "otherwise (--tta on|off there)")
     appearance: float = param(0.5, ge=0, le=1, help="share of training images perturbed toward "
                               "photographs (textures, overlay style, light, tilt, camera); 0: "
                               "off")

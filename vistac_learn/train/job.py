@@ -92,6 +92,7 @@ def run_job(cfg: JobCfg) -> JobResult:
         TrainingDiverged: the loss became non-finite (a `UserError`).
         UserError: bad settings or data.
     """
+    from vistac_learn.evaluate.config import EvaluateCfg
     from vistac_learn.evaluate.run import evaluate_run
 
     t0 = time.perf_counter()
@@ -109,9 +110,10 @@ def run_job(cfg: JobCfg) -> JobResult:
     objective = sum(row[f"val_{f}_{OBJECTIVE}"] for f in fingers) / len(fingers)
     scores = {}
     for s in cfg.scores:
-        res = evaluate_run(out, data=s.data, split=s.split, out=out / "eval" / s.name,
-                           make_plots=False, cross_dataset=s.data is not None,
-                           max_missing_pct=cfg.train.max_missing_pct)
+        res = evaluate_run(EvaluateCfg(run=str(out), data=s.data, split=s.split, no_plots=True,
+                                       cross_dataset=s.data is not None,
+                                       max_missing_pct=cfg.train.max_missing_pct),
+                           out / "eval" / s.name)
         scores[s.name] = res["metrics"]
     return JobResult(str(out), float(objective), int(best), len(rows),
                      float(rows[0]["train_loss"]),
