@@ -38,7 +38,7 @@ from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.metrics.scoring import ANGLE_COLUMNS, STUDY_COLUMNS
 from vistac_learn.models import model_info
 from vistac_learn.train.config import protocol_cfg
-from vistac_learn.train.loop import train
+from vistac_learn.train.loop import train_run_folder
 from vistac_sim.generate.config import GenerateCfg
 
 DEFAULT_MODELS = ("schoeconv100-v3-fc160", "alexnet-1x1", "smallconv", "resnet-tiny")
@@ -96,8 +96,8 @@ def run_protocol(args: argparse.Namespace) -> dict:
         done = len(_epoch_rows(run))
         if done < args.epochs:
             print(f"== {name}: training {args.epochs} epochs", flush=True)
-            train(cfg, resume=(run / "checkpoints" / "last.pt").exists(),
-                  progress=not args.quiet)
+            train_run_folder(cfg, resume=(run / "checkpoints" / "last.pt").exists(),
+                             progress=not args.quiet)
         rows = _epoch_rows(run)
         res = evaluate_run(EvaluateCfg(run=str(run), device="cpu"))
         info = model_info(name, 1, 2)

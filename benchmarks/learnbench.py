@@ -1,8 +1,9 @@
 """Shared pieces of the learning benchmarks: datasets, resumable train-and-score entries, tables.
 
-Every entry is a training run in ``<out>/runs/<slug>`` made by `vistac_learn.train.loop.train`
-and scored on the test split by `evaluate_run`; a rerun skips finished runs and resumes
-unfinished ones, so a benchmark killed half-way continues where it stopped.
+Every entry is a training run in ``<out>/runs/<slug>`` made by
+`vistac_learn.train.loop.train_run_folder` and scored on the test split by `evaluate_run`; a
+rerun skips finished runs and resumes unfinished ones, so a benchmark killed half-way continues
+where it stopped.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from vistac_learn.evaluate.references import LABELS, references
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.metrics import cone_metrics
 from vistac_learn.train.config import protocol_cfg
-from vistac_learn.train.loop import train
+from vistac_learn.train.loop import train_run_folder
 from vistac_sim.generate.config import GenerateCfg
 
 COLUMNS = (("° to mean", "angle_to_mean_median_deg"), ("% in cone", "in_cone_pct"),
@@ -100,7 +101,7 @@ def run_entry(data: Path, out: Path, label: str, protocol: str = "default",
               progress: bool = True, **changes) -> dict:
     """Train (or finish training) one run and score its best epoch on the test split.
 
-    The wall and CPU seconds of the `train` calls (locating fingertips not yet cached
+    The wall and CPU seconds of the `train_run_folder` calls (locating fingertips not yet cached
     included) add up in ``<run>/train_time.json`` over resumed sessions: on a shared machine
     the CPU seconds are the comparable figure.
     """
@@ -110,7 +111,7 @@ def run_entry(data: Path, out: Path, label: str, protocol: str = "default",
     if len(_epoch_rows(run)) < cfg.epochs:
         print(f"== {label}: training", flush=True)
         t0, c0 = time.perf_counter(), cpu_s()
-        train(cfg, resume=(run / "checkpoints" / "last.pt").exists(), progress=progress)
+        train_run_folder(cfg, resume=(run / "checkpoints" / "last.pt").exists(), progress=progress)
         spent = json.loads(timing_path.read_text()) if timing_path.exists() else {}
         timing_path.write_text(json.dumps({
             "wall_s": spent.get("wall_s", 0.0) + time.perf_counter() - t0,

@@ -35,14 +35,14 @@ import csv, json, resource, sys, time
 import torch
 import vistac_learn
 from vistac_learn.train.config import protocol_cfg
-from vistac_learn.train.loop import train
+from vistac_learn.train.loop import train_run_folder
 data, out, epochs, fraction, cache, workers = sys.argv[1:]
 torch.set_num_threads(1)
 extra = {"loader_workers": int(workers)} if int(workers) else {}
 cfg = protocol_cfg("default", data, out, epochs=int(epochs), train_fraction=float(fraction),
                    cache_dir=cache, **extra)
 t0 = time.perf_counter()
-train(cfg, progress=False)
+train_run_folder(cfg, progress=False)
 wall = time.perf_counter() - t0
 ru = resource.getrusage(resource.RUSAGE_SELF)
 kids = resource.getrusage(resource.RUSAGE_CHILDREN)  # loader workers

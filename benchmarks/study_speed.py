@@ -27,7 +27,7 @@ import vistac_learn.data.samples as samples
 from vistac.dataset import SplitCfg, open_dataset
 from vistac.provenance import provenance
 from vistac_learn.train.config import protocol_cfg
-from vistac_learn.train.loop import train
+from vistac_learn.train.loop import train_run_folder
 from vistac_sim.generate.config import GenerateCfg
 
 REPO = Path(__file__).resolve().parent.parent
@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
                            train_fraction=frac,
                            cache_dir=str(work / "cache"))
         c0 = cpu_s()
-        train(cfg, progress=False)
+        train_run_folder(cfg, progress=False)
         cpu = cpu_s() - c0
         rows = epochs_of(run)
         n = args.n_train * cfg.n_rotations

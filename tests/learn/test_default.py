@@ -27,7 +27,7 @@ from vistac_learn.metrics import cone_metrics
 from vistac_learn.models.tipnet import apply_model
 from vistac_learn.train.build import build_model, build_samples, input_size
 from vistac_learn.train.config import protocol_cfg
-from vistac_learn.train.loop import masked_mse, train
+from vistac_learn.train.loop import masked_mse, train_run_folder
 
 
 @pytest.fixture(scope="module")
@@ -74,7 +74,7 @@ def test_sanity_a_model_fits_64_samples(generated, tmp_path, protocol, model, ep
     cfg = protocol_cfg(protocol, str(generated), str(tmp_path / "run"), **kw)
     n = len(open_dataset(generated).rows("val"))
     assert 50 <= n <= 90, n  # the ~64 samples of the standard check
-    run = train(cfg, progress=False)
+    run = train_run_folder(cfg, progress=False)
     fingers = ("index", "thumb") if protocol == "default" else ("index",)
     ratio = _train_loss(run, "val") / _mean_predictor_loss(generated, fingers, "val")
     assert ratio < 0.05, ratio
@@ -86,8 +86,9 @@ NO_APPEARANCE = dict(appearance=0.0)
 
 
 def test_default_training_beats_a_mean_predictor(generated, tmp_path):
-    run = train(protocol_cfg("default", str(generated), str(tmp_path / "run"), epochs=25,
-                             batch_size=16, device="cpu", **NO_APPEARANCE), progress=False)
+    run = train_run_folder(protocol_cfg("default", str(generated), str(tmp_path / "run"),
+                                        epochs=25, batch_size=16, device="cpu", **NO_APPEARANCE),
+                           progress=False)
     res = evaluate_run(EvaluateCfg(run=str(run), no_plots=True))
     t = open_dataset(generated)
     for f in ("index", "thumb"):
@@ -107,8 +108,8 @@ def test_the_recipe_says_whether_evaluation_averages_the_mirrored_view(generated
     its own default folder, and a value other than the three is refused."""
     import vistac
 
-    run = train(protocol_cfg("default", str(generated), str(tmp_path / "run"), epochs=1,
-                             batch_size=16, device="cpu"), progress=False)
+    run = train_run_folder(protocol_cfg("default", str(generated), str(tmp_path / "run"), epochs=1,
+                                        batch_size=16, device="cpu"), progress=False)
     on = evaluate_run(EvaluateCfg(run=str(run), no_plots=True, no_references=True))
     off = vistac.evaluate(run, tta="off", no_plots=True, no_references=True)
     assert on["tta"] and not off.result["tta"]
@@ -132,25 +133,26 @@ def test_init_loads_the_weights_it_names(generated, tmp_path):
     """A run started from another run's weights begins where that one ended: its first-epoch
     loss is far below the same run's from scratch."""
     kw = dict(epochs=1, lr=1e-4, schedule="constant", device="cpu")
-    src = train(protocol_cfg("default", str(generated), str(tmp_path / "src"), epochs=8,
-                             device="cpu", **NO_APPEARANCE), progress=False)
-    tuned = train(protocol_cfg("default", str(generated), str(tmp_path / "ft"), init=str(src),
-                               **kw), progress=False)
-    scratch = train(protocol_cfg("default", str(generated), str(tmp_path / "sc"), **kw),
-                    progress=False)
+    src = train_run_folder(protocol_cfg("default", str(generated), str(tmp_path / "src"), epochs=8,
+                                        device="cpu", **NO_APPEARANCE), progress=False)
+    tuned = train_run_folder(protocol_cfg("default", str(generated), str(tmp_path / "ft"),
+                                          init=str(src), **kw), progress=False)
+    scratch = train_run_folder(protocol_cfg("default", str(generated), str(tmp_path / "sc"), **kw),
+                               progress=False)
     first = [json.loads(json.dumps(_first_row(r))) for r in (tuned, scratch)]
     assert first[0]["train_loss"] < 0.5 * first[1]["train_loss"]
     meta = json.loads((tuned / "config.json").read_text())
     assert meta["init"]["run"] == str(src.resolve()) and not meta["init"]["reinitialised"]
-    frozen = train(protocol_cfg("default", str(generated), str(tmp_path / "fz"), init=str(src),
-                                freeze="features", **kw), progress=False)
+    frozen = train_run_folder(protocol_cfg("default", str(generated), str(tmp_path / "fz"),
+                                           init=str(src), freeze="features", **kw),
+                              progress=False)
     a = torch.load(src / "checkpoints" / "best.pt", weights_only=True)["model"]
     b = torch.load(frozen / "checkpoints" / "last.pt", weights_only=True)["model"]
     assert all(torch.equal(a[k], b[k]) for k in a if ".features." in f".{k}")
     assert not all(torch.equal(a[k], b[k]) for k in a if "head" in k)
     with pytest.raises(UserError, match="not a finished run"):
-        train(protocol_cfg("default", str(generated), str(tmp_path / "x"),
-                           init=str(tmp_path / "nowhere")), progress=False)
+        train_run_folder(protocol_cfg("default", str(generated), str(tmp_path / "x"),
+                                      init=str(tmp_path / "nowhere")), progress=False)
 
 
 def _first_row(run):
@@ -176,21 +178,22 @@ def test_a_run_killed_before_its_first_checkpoint_restarts(generated, tmp_path):
         raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        train(cfg, progress=False, on_batch=killer)
+        train_run_folder(cfg, progress=False, on_batch=killer)
     assert not (tmp_path / "run" / "checkpoints" / "last.pt").exists()
-    assert train(cfg, progress=False) == tmp_path / "run"  # no --resume needed, nothing lost
+    # no --resume needed, nothing lost
+    assert train_run_folder(cfg, progress=False) == tmp_path / "run"
     assert not list((tmp_path / "run" / "checkpoints").glob(".*tmp"))
 
 
 def test_a_run_is_tied_to_its_dataset(generated, tmp_path, capsys):
     from learn_fixtures import make_dataset
 
-    run = train(protocol_cfg("default", str(generated), str(tmp_path / "run"), epochs=1,
-                             device="cpu"), progress=False)
+    run = train_run_folder(protocol_cfg("default", str(generated), str(tmp_path / "run"), epochs=1,
+                                        device="cpu"), progress=False)
     other = make_dataset(tmp_path / "other", n=8, size=96)
     with pytest.raises(UserError, match="not the dataset this run started on"):
-        train(protocol_cfg("default", str(other), str(run), epochs=2, device="cpu"),
-              resume=True, progress=False)
+        train_run_folder(protocol_cfg("default", str(other), str(run), epochs=2, device="cpu"),
+                         resume=True, progress=False)
     with pytest.raises(UserError, match="--cross-dataset"):
         evaluate_run(EvaluateCfg(run=str(run), data=str(other), no_plots=True))
     res = evaluate_run(EvaluateCfg(run=str(run), data=str(other), no_plots=True,
@@ -202,8 +205,9 @@ def test_a_run_is_tied_to_its_dataset(generated, tmp_path, capsys):
 def pinch_run(generated, tmp_path_factory):
     """The default recipe (pinch view, contact targets), 6 epochs on the generated data."""
     out = tmp_path_factory.mktemp("pinch") / "run"
-    return train(protocol_cfg("default", str(generated), str(out), epochs=6, batch_size=16,
-                              device="cpu", **NO_APPEARANCE), progress=False)
+    return train_run_folder(protocol_cfg("default", str(generated), str(out), epochs=6,
+                                         batch_size=16, device="cpu", **NO_APPEARANCE),
+                            progress=False)
 
 
 def _val_batch(cfg, data: str):
@@ -257,7 +261,7 @@ def test_init_from_a_sim_run_onto_data_without_contacts(generated, pinch_run, tm
     c.to_parquet(real / "configs.parquet")
     cfg = protocol_cfg("default", str(real), str(tmp_path / "ft"), init=str(pinch_run),
                        epochs=1, device="cpu")
-    run = train(cfg, progress=False)
+    run = train_run_folder(cfg, progress=False)
     meta = json.loads((run / "config.json").read_text())
     assert not meta["init"]["reinitialised"]
     row = _first_row(run)

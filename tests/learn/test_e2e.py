@@ -12,7 +12,7 @@ from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.geometric import baseline_predictions
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.train.config import protocol_cfg
-from vistac_learn.train.loop import train
+from vistac_learn.train.loop import train_run_folder
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +26,7 @@ def test_generated_dataset_trains_and_evaluates(generated, tmp_path):
     assert len(t.configs) == 30 and t.has_boxes("index") and t.has_boxes("thumb")
     cfg = protocol_cfg("study", str(generated), str(tmp_path / "run"), model="smallconv",
                        epochs=1, n_rotations=2, device="cpu", cache_dir=str(tmp_path / "cache"))
-    run = train(cfg, progress=False)
+    run = train_run_folder(cfg, progress=False)
     res = evaluate_run(EvaluateCfg(run=str(run)))
     s = res["metrics"]["index"]
     assert res["n_predictions"] == 2 * res["n_configs"]

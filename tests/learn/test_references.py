@@ -22,7 +22,7 @@ from vistac_learn.evaluate.pinch import clamp_to_cone, predict_image
 from vistac_learn.evaluate.references import has_clean_forces, noise_floor, references
 from vistac_learn.evaluate.run import evaluate_run
 from vistac_learn.train.config import protocol_cfg
-from vistac_learn.train.loop import train
+from vistac_learn.train.loop import train_run_folder
 
 COLOURS = {"index": INDEX_RGB, "thumb": THUMB_RGB}
 SHIFT = 4  # OpenCV's sub-pixel drawing: coordinates in 1/16 px
@@ -168,7 +168,7 @@ def tiny_run(tmp_path_factory):
                        n_rotations=2, batch_size=4, device="cpu", finger="both",
                        variant="edge-crop",
                        cache_dir=str(root / "cache"))
-    return ds, train(cfg, progress=False)
+    return ds, train_run_folder(cfg, progress=False)
 
 
 def test_evaluate_shows_the_references_beside_the_model(tiny_run, monkeypatch):

@@ -16,7 +16,7 @@ from vistac.errors import UserError
 from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
 from vistac_learn.train.config import protocol_cfg
-from vistac_learn.train.loop import train
+from vistac_learn.train.loop import train_run_folder
 
 TIME_COLUMNS = ("train_s", "epoch_s")
 
@@ -50,7 +50,7 @@ def _same_metrics(a, b, atol=1e-7):
 
 
 def test_run_folder_and_repeatability(ds_dir, tmp_path):
-    a = train(_cfg(ds_dir, tmp_path / "a"), progress=False)
+    a = train_run_folder(_cfg(ds_dir, tmp_path / "a"), progress=False)
     assert (a / "config.json").exists()
     assert (a / "checkpoints" / "last.pt").exists() and (a / "checkpoints" / "best.pt").exists()
     rows = _rows(a)
@@ -60,16 +60,17 @@ def test_run_folder_and_repeatability(ds_dir, tmp_path):
     meta = json.loads((a / "config.json").read_text())
     assert meta["train"]["model"] == "smallconv" and meta["dataset"]["n_train_configs"] == 4
     # the same seed gives the same run, whether the samples are rendered here or in workers
-    b = train(_cfg(ds_dir, tmp_path / "b", loader_workers=2), progress=False)
+    b = train_run_folder(_cfg(ds_dir, tmp_path / "b", loader_workers=2), progress=False)
     _same_metrics(a, b, atol=0)
     with pytest.raises(UserError, match="already holds a run"):
-        train(_cfg(ds_dir, tmp_path / "a"), progress=False)
+        train_run_folder(_cfg(ds_dir, tmp_path / "a"), progress=False)
 
 
 @pytest.mark.parametrize("kill_at", [(0, 1), (1, 0), (1, 1)])
 def test_killed_and_resumed_run_ends_identical(ds_dir, tmp_path, kill_at):
     """A run interrupted mid-epoch and resumed ends with the uninterrupted run's metrics."""
-    ref = train(_cfg(ds_dir, tmp_path / "ref", epochs=3, checkpoint_every=1), progress=False)
+    ref = train_run_folder(_cfg(ds_dir, tmp_path / "ref", epochs=3, checkpoint_every=1),
+                           progress=False)
 
     def killer(epoch, batch):
         if (epoch, batch) == kill_at:
@@ -77,8 +78,8 @@ def test_killed_and_resumed_run_ends_identical(ds_dir, tmp_path, kill_at):
 
     cut = _cfg(ds_dir, tmp_path / "cut", epochs=3, checkpoint_every=1)
     with pytest.raises(KeyboardInterrupt):
-        train(cut, progress=False, on_batch=killer)
-    train(cut, resume=True, progress=False)
+        train_run_folder(cut, progress=False, on_batch=killer)
+    train_run_folder(cut, resume=True, progress=False)
     _same_metrics(ref, tmp_path / "cut", atol=1e-7)
     wa = torch.load(ref / "checkpoints" / "last.pt", weights_only=True)["model"]
     wb = torch.load(tmp_path / "cut" / "checkpoints" / "last.pt", weights_only=True)["model"]
@@ -87,7 +88,7 @@ def test_killed_and_resumed_run_ends_identical(ds_dir, tmp_path, kill_at):
 
 
 def test_resume_without_intermediate_checkpoints_reruns_the_epoch(ds_dir, tmp_path):
-    ref = train(_cfg(ds_dir, tmp_path / "ref", target="press"), progress=False)
+    ref = train_run_folder(_cfg(ds_dir, tmp_path / "ref", target="press"), progress=False)
 
     def killer(epoch, batch):
         if (epoch, batch) == (1, 0):
@@ -95,17 +96,18 @@ def test_resume_without_intermediate_checkpoints_reruns_the_epoch(ds_dir, tmp_pa
 
     cut = _cfg(ds_dir, tmp_path / "cut", target="press")
     with pytest.raises(KeyboardInterrupt):
-        train(cut, progress=False, on_batch=killer)
+        train_run_folder(cut, progress=False, on_batch=killer)
     assert len(_rows(tmp_path / "cut")) == 1
-    train(cut, resume=True, progress=False)
+    train_run_folder(cut, resume=True, progress=False)
     _same_metrics(ref, tmp_path / "cut", atol=1e-7)
     with pytest.raises(UserError, match="different settings"):
-        train(_cfg(ds_dir, tmp_path / "cut", target="press", lr=0.5), resume=True, progress=False)
+        train_run_folder(_cfg(ds_dir, tmp_path / "cut", target="press", lr=0.5), resume=True,
+                         progress=False)
 
 
 def test_evaluate_run_tta_and_baseline(ds_dir, tmp_path, capsys):
-    run = train(_cfg(ds_dir, tmp_path / "run", variant="edge-crop", finger="both", epochs=1,
-                     select="in_cone_pct"), progress=False)
+    run = train_run_folder(_cfg(ds_dir, tmp_path / "run", variant="edge-crop", finger="both",
+                                epochs=1, select="in_cone_pct"), progress=False)
     capsys.readouterr()
     res = evaluate_run(EvaluateCfg(run=str(run)))  # the study recipe: tta off
     assert capsys.readouterr().out == ""  # the library returns its results, the CLI prints
@@ -194,6 +196,6 @@ def test_sigkilled_process_resumes_identically(ds_dir, tmp_path):
 def test_one_cycle_schedule_of_very_few_steps(ds_dir, tmp_path, epochs, batch_size):
     """A one-cycle run of 1, 2 or a few optimiser steps trains (torch's schedule needs a
     warm-up of more than one step; a tiny fraction of the data gives such runs)."""
-    run = train(_cfg(ds_dir, tmp_path / "r", schedule="onecycle", epochs=epochs,
-                     batch_size=batch_size, n_rotations=1), progress=False)
+    run = train_run_folder(_cfg(ds_dir, tmp_path / "r", schedule="onecycle", epochs=epochs,
+                                batch_size=batch_size, n_rotations=1), progress=False)
     assert len(_rows(run)) == epochs

@@ -25,7 +25,7 @@ from vistac.errors import UserError
 from vistac_learn.data.samples import fingers_of
 from vistac_learn.train.checkpoints import BEST_KEYS, RESTART, load_checkpoint
 from vistac_learn.train.config import TrainCfg
-from vistac_learn.train.loop import TrainingDiverged, train
+from vistac_learn.train.loop import TrainingDiverged, train_run_folder
 from vistac_learn.train.run_files import read_metrics
 from vistac_learn.train.run_folder import damage
 
@@ -99,7 +99,7 @@ def run_job(cfg: JobCfg) -> JobResult:
     out = Path(cfg.train.out)
     started = (out / "config.json").exists()
     resume = cfg.resume == "yes" or (cfg.resume == "auto" and started and not damage(out))
-    train(cfg.train, resume=resume, progress=cfg.progress)
+    train_run_folder(cfg.train, resume=resume, progress=cfg.progress)
     rows = read_metrics(out / "metrics.csv", RESTART)
     best = load_checkpoint(out / "checkpoints" / "best.pt", BEST_KEYS, RESTART)["epoch"]
     row = next((r for r in rows if int(r["epoch"]) == best), None)

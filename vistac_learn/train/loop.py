@@ -1,6 +1,6 @@
-"""The training loop: `train(cfg)`, shared by `vistac train`, tuning and experiments.
+"""The training loop: `train_run_folder(cfg)`, shared by `vistac train`, tuning and experiments.
 
-`train` holds the run folder's lock and strings the parts together: the folder's policy
+`train_run_folder` holds the run folder's lock and strings the parts together: the folder's policy
 (`vistac_learn.train.run_folder`), the samples and their `DataLoader`
 (`vistac_learn.data.loading`), `train_one_epoch`, `validate`, the selection of the best epoch
 and the checkpoints (`vistac_learn.train.checkpoints`).
@@ -82,7 +82,7 @@ from vistac_learn.train.run_files import append_metrics, mark_diverged, restore_
 from vistac_learn.train.run_folder import RunFolder, run_meta
 
 __all__ = ["BEST_KEYS", "DIVERGED_LOSS", "LAST_KEYS", "RESTART", "TrainingDiverged", "diverged",
-           "evaluate_loss", "train", "train_one_epoch", "validate"]
+           "evaluate_loss", "train_one_epoch", "train_run_folder", "validate"]
 
 HIGHER_IS_BETTER = frozenset({"correct_y_pct", "in_cone_pct", "n_in_cone"})
 DIVERGED_LOSS = 100.0
@@ -212,8 +212,8 @@ def validate(model: torch.nn.Module, ds: SampleSet, cfg: TrainCfg, device: torch
     return row
 
 
-def train(cfg: TrainCfg, resume: bool = False, progress: bool = True,
-          on_batch: Callable[[int, int], None] | None = None) -> Path:
+def train_run_folder(cfg: TrainCfg, resume: bool = False, progress: bool = True,
+                     on_batch: Callable[[int, int], None] | None = None) -> Path:
     """Train (or continue) a run; return the run folder.
 
     Args:
