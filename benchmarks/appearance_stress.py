@@ -67,7 +67,7 @@ from vistac_learn.data.fingertip_table import (
 )
 from vistac_learn.data.fingertips import Fingertip
 from vistac_learn.data.perturb import PERTURBATIONS, Scene, perturb, segment
-from vistac_learn.data.samples import SampleSet, moved_fingertip
+from vistac_learn.data.samples import SampleSet, SampleSpec, moved_fingertip
 from vistac_learn.data.tip_coverage import MAX_MISSING_PCT
 from vistac_learn.data.variants import read_rgb
 from vistac_learn.evaluate.geometric import GeometricCfg, predict_image
@@ -119,9 +119,9 @@ def run_predictor(run: Path, oracle: bool = False) -> Predictor:
         if view.needs_tips:
             tips = true_tips(tables, rows, homs) if oracle else located_in(tables, rows, images)
         def samples(mirror: bool) -> SampleSet:
-            return SampleSet(tables, rows, view, size, FINGERS, "mean", cfg.seed,
-                             cfg.rotation_cfg(), None, tips, images=lambda r: by_row[int(r)],
-                             mirror=mirror)
+            spec = SampleSpec(view, size, FINGERS, "mean", cfg.seed, cfg.rotation_cfg(),
+                              mirror=mirror)
+            return SampleSet(tables, rows, spec, tips, images=lambda r: by_row[int(r)])
 
         # the recipe's test-time augmentation, as `vistac evaluate` applies it
         pred = predict_mirror_averaged(model, samples, dev, cfg.eval_batch_size) if cfg.tta \

@@ -34,7 +34,7 @@ from vistac.dataset.schema import clean_force_columns
 from vistac.provenance import provenance
 from vistac_learn.data.fingertip_table import FingertipTable, fingertip_table
 from vistac_learn.data.loading import loader
-from vistac_learn.data.samples import SampleSet
+from vistac_learn.data.samples import SampleSet, SampleSpec
 from vistac_learn.data.views import TipCfg, make_view
 from vistac_learn.metrics.scoring import score
 from vistac_learn.models.pinch import MU, compose_labels
@@ -48,7 +48,7 @@ def composed(data: Path, split: str = "test", tips: FingertipTable | None = None
     around `tips` (default: the dataset's located fingertips)."""
     t = open_dataset(data)
     rows = t.rows(split)
-    ds = SampleSet(t, rows, make_view("pinch"), 48, FINGERS,
+    ds = SampleSet(t, rows, SampleSpec(make_view("pinch"), 48, FINGERS),
                    tips=tips if tips is not None else fingertip_table(t))
     out: dict[str, list[np.ndarray]] = {}
     for b in loader(ds, 256):

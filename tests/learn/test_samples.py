@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -12,8 +14,17 @@ from vistac.dataset import open_dataset
 from vistac.errors import UserError
 from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.data.loading import EpochBatches, loader
-from vistac_learn.data.samples import AugmentCfg, RotationCfg, SampleSet, collate, fingers_of
+from vistac_learn.data.samples import (
+    AugmentCfg,
+    RotationCfg,
+    SampleSet,
+    SampleSpec,
+    collate,
+    fingers_of,
+)
 from vistac_learn.data.views import SIDE_FEATURES, Aug, make_view, mirror_labels, tip_crop
+
+SPEC_FIELDS = {f.name for f in dataclasses.fields(SampleSpec)}
 
 
 @pytest.fixture(scope="module")
@@ -24,9 +35,11 @@ def ds(tmp_path_factory):
 
 
 def _set(ds, view="tip", **kw):
+    """The training rows' samples; `kw`: fields of their `SampleSpec`, or of the `SampleSet`."""
     t, tips = ds
-    base = dict(view=make_view(view), size=32, fingers=("index", "thumb"), tips=tips)
-    return SampleSet(t, t.rows("train"), **(base | kw))
+    spec = dict(view=make_view(view), size=32, fingers=("index", "thumb"))
+    spec |= {k: kw.pop(k) for k in [k for k in kw if k in SPEC_FIELDS]}
+    return SampleSet(t, t.rows("train"), SampleSpec(**spec), **(dict(tips=tips) | kw))
 
 
 def test_targets_and_items(ds):

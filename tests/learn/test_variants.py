@@ -10,7 +10,7 @@ from learn_fixtures import make_dataset
 from vistac.dataset import open_dataset
 from vistac.errors import UserError
 from vistac_learn.data import variants as V
-from vistac_learn.data.samples import SampleSet
+from vistac_learn.data.samples import SampleSet, SampleSpec
 from vistac_learn.data.views import make_view
 
 
@@ -122,9 +122,9 @@ def test_box_variant_without_boxes_is_a_clear_error(ds_dir, tmp_path):
     c.drop(columns=[k for k in c.columns if k.startswith("bbox_")]).to_parquet(
         d / "configs.parquet")
     t = open_dataset(d)
-    base = SampleSet(t, t.rows(None), make_view("color-base"), 24, ("index",))
+    base = SampleSet(t, t.rows(None), SampleSpec(make_view("color-base"), 24, ("index",)))
     assert base.batch(np.arange(4))["image"].shape == (4, 3, 24, 24)
     with pytest.raises(UserError, match="needs columns bbox_index"):
-        SampleSet(t, t.rows(None), make_view("edge-index"), 24, ("index",))
+        SampleSet(t, t.rows(None), SampleSpec(make_view("edge-index"), 24, ("index",)))
     with pytest.raises(UserError, match="name: must be one of"):
         V.VariantCfg("edge-pinky")

@@ -141,12 +141,13 @@ def perturb_sample(rgb: np.ndarray, info: SampleInfo, finger_rgb: dict[str, tupl
     return out.rgb, SampleInfo(boxes, tips, info.table_rgb, contacts)
 
 
-class SampleSet(torch.utils.data.Dataset):
-    """The samples of some configuration rows, one rendered sample per item.
+@dataclass(frozen=True)
+class SampleSpec:
+    """What each sample of a `SampleSet` is, whichever rows it comes from: the model's input
+    (view, size), its target (fingers, `target`) and how a sample is drawn (rotations,
+    augmentation or test-time mirroring, seed).
 
-    Args:
-        tables: The dataset.
-        rows: Configuration rows.
+    Attributes:
         view: What the model sees.
         size: Side of the rendered input.
         fingers: Fingers whose labels form the target, in order (2 values per finger).
@@ -154,35 +155,59 @@ class SampleSet(torch.utils.data.Dataset):
         seed: Seed of press draws, random angles and augmentation.
         rotations: Samples per configuration and their angles.
         augment: Augmentation (None: none, as at evaluation).
+        mirror: Every sample mirrored, its r_y negated (test-time augmentation; only without
+            `augment`, which draws its own mirrors).
+    """
+
+    view: View
+    size: int
+    fingers: tuple[str, ...]
+    target: str = "mean"
+    seed: int = 0
+    rotations: RotationCfg = RotationCfg()
+    augment: AugmentCfg | None = None
+    mirror: bool = False
+
+    def __post_init__(self):
+        object.__setattr__(self, "fingers", tuple(self.fingers))
+        if self.target not in TARGETS:
+            raise UserError(f"target must be one of {', '.join(TARGETS)}, not {self.target!r}")
+        if self.mirror and self.augment is not None:
+            raise ValueError("mirror (every sample) and augment (drawn mirrors) exclude "
+                             "each other")
+
+
+class SampleSet(torch.utils.data.Dataset):
+    """The samples of some configuration rows, one rendered sample per item.
+
+    Args:
+        tables: The dataset.
+        rows: Configuration rows.
+        spec: What each sample is (view, size, fingers, target, rotations, augmentation,
+            mirroring, seed); its settings are also attributes of the set.
         tips: Located fingertips (required by views that need them).
         images: Where a configuration row's image comes from (default: decoded from the
             dataset), e.g. perturbed copies for a stress test.
-        mirror: Every sample mirrored, its r_y negated (test-time augmentation; only without
-            `augment`, which draws its own mirrors).
         threads: Threads rendering a batch's samples in the training process (see
             `__getitems__`).
     """
 
-    def __init__(self, tables: DatasetTables, rows: np.ndarray, view: View, size: int,
-                 fingers: tuple[str, ...], target: str = "mean", seed: int = 0,
-                 rotations: RotationCfg = RotationCfg(), augment: AugmentCfg | None = None,
+    def __init__(self, tables: DatasetTables, rows: np.ndarray, spec: SampleSpec,
                  tips: FingertipTable | None = None,
-                 images: Callable[[int], np.ndarray] | None = None, mirror: bool = False,
-                 threads: int = 2):
-        if target not in TARGETS:
-            raise UserError(f"target must be one of {', '.join(TARGETS)}, not {target!r}")
+                 images: Callable[[int], np.ndarray] | None = None, threads: int = 2):
+        view, target, rotations, augment = spec.view, spec.target, spec.rotations, spec.augment
         if view.needs_tips and tips is None:
             raise ValueError(f"view {view.name} needs located fingertips")
-        if mirror and augment is not None:
-            raise ValueError("mirror (every sample) and augment (drawn mirrors) exclude "
-                             "each other")
         for f in view.needs_boxes:
             if not tables.has_boxes(f):
                 raise UserError(f"{tables.root / 'configs.parquet'}: view {view.name} needs "
                                 f"columns bbox_{f}_x|y|w|h with finite values")
-        self.tables, self.view, self.size, self.fingers = tables, view, size, tuple(fingers)
-        self.target, self.seed, self.rotations, self.augment = target, seed, rotations, augment
-        self.tips, self.mirror, self.threads = tips, mirror, threads
+        self.tables, self.spec = tables, spec
+        # the spec's settings, read per sample here and by scoring and evaluation
+        self.view, self.size, self.fingers = view, spec.size, spec.fingers
+        self.target, self.seed, self.rotations, self.augment = target, spec.seed, rotations, augment
+        self.mirror = spec.mirror
+        self.tips, self.threads = tips, threads
         self.images = images
         self._finger_rgb = {f: tables.finger_rgb(f) for f in FINGERS}
         self.rows = np.asarray(rows, dtype=np.int64)

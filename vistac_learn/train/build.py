@@ -16,7 +16,7 @@ from vistac.dataset import DatasetTables, read_manifest
 from vistac.dataset.files import check_out_dir
 from vistac.errors import UserError
 from vistac_learn.data.fingertip_table import FingertipTable
-from vistac_learn.data.samples import SampleSet, fingers_of
+from vistac_learn.data.samples import SampleSet, SampleSpec, fingers_of
 from vistac_learn.data.tip_coverage import TipCoverage, tip_coverage
 from vistac_learn.data.views import PINCH_VIEW, View, make_view
 from vistac_learn.models import create_model
@@ -98,9 +98,10 @@ def build_samples(cfg: TrainCfg, tables: DatasetTables, split: str, size: int,
     rows = tables.rows(split)
     if train:
         rows = subset_rows(rows, cfg.train_fraction, cfg.seed)
-    return SampleSet(tables, rows, view, size, fingers_of(cfg.finger),
-                     cfg.target if train else "mean", cfg.seed, cfg.rotation_cfg(),
-                     cfg.augment_cfg() if train else None, tips, mirror=mirror)
+    spec = SampleSpec(view, size, fingers_of(cfg.finger), cfg.target if train else "mean",
+                      cfg.seed, cfg.rotation_cfg(), cfg.augment_cfg() if train else None,
+                      mirror)
+    return SampleSet(tables, rows, spec, tips)
 
 
 def run_coverage(cfg: TrainCfg, tables: DatasetTables, tips: FingertipTable | None
