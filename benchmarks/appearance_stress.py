@@ -57,7 +57,7 @@ import numpy as np
 import pandas as pd
 from learnbench import ensure_dataset, headline_data, run_entry, save, slug
 
-from vistac.dataset import FINGERS, DatasetTables, open_dataset
+from vistac.dataset import FINGERS, DatasetTables, open_tables
 from vistac.errors import UserError
 from vistac_learn.data.fingertip_table import (
     FingertipTable,
@@ -194,7 +194,7 @@ def photo_twin(tables: DatasetTables, photo: Path) -> DatasetTables:
     Raises:
         UserError: other configurations or other labels.
     """
-    twin = open_dataset(photo)
+    twin = open_tables(photo)
     same = (len(twin.configs) == len(tables.configs)
             and twin.presses.equals(tables.presses)
             and all(np.array_equal(twin.rows(s), tables.rows(s)) for s in ("train", "test")))
@@ -351,7 +351,7 @@ def main() -> None:
                       appearance=app, max_missing_pct=10.0 if on == photo_data else MAX_MISSING_PCT)
             runs[label] = a.out / "runs" / slug(label)
             train_s[label] = time.perf_counter() - t0
-    tables = open_dataset(data)
+    tables = open_tables(data)
     rows = tables.rows("test")
     if a.limit:
         rows = rows[:a.limit]

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac.provenance import provenance
 from vistac_sim.objects.outlines import CONCAVE_FAMILIES
 
@@ -35,7 +35,7 @@ def main() -> None:
     subprocess.run([sys.executable, "-m", "vistac.cli", "generate", "--n", str(args.n),
                     "--friction", "0", "--repeats", "1", "--seed", str(args.seed), "--workers",
                     str(args.workers), "--out", str(data), "--no-progress"], check=True)
-    configs = open_dataset(data).configs
+    configs = open_tables(data).configs
     rows = {}
     for fam, group in configs.groupby("object_family"):
         ang = []

@@ -51,7 +51,7 @@ from learnbench import (
     table,
 )
 
-from vistac.dataset import FINGERS, open_dataset, unit_labels
+from vistac.dataset import FINGERS, open_tables, unit_labels
 from vistac.dataset.schema import clean_force_columns
 from vistac_learn.metrics.scoring import score
 
@@ -78,7 +78,7 @@ def _default_entry(data: Path, out: Path, progress: bool) -> dict:
 def floor_entry(data: Path) -> dict:
     """The noise floor: every configuration's noise-free force scored against its noisy presses'
     cone, like a prediction."""
-    t = open_dataset(data)
+    t = open_tables(data)
     rows = t.rows("test")
     pred = np.concatenate([unit_labels(t.configs[clean_force_columns(f)].to_numpy(float))
                            for f in FINGERS], axis=1)[rows]

@@ -31,7 +31,7 @@ import numpy as np
 import torch
 
 import vistac
-from vistac.dataset import SplitCfg, open_dataset
+from vistac.dataset import SplitCfg, open_tables
 from vistac.provenance import provenance
 from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.run import evaluate_baseline, evaluate_run
@@ -82,7 +82,7 @@ def run_protocol(args: argparse.Namespace) -> dict:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     data = _dataset(args)
-    tables = open_dataset(data)
+    tables = open_tables(data)
     counts = {s: int((tables.configs["split"] == s).sum()) for s in ("train", "val", "test")}
     print(f"dataset {data}: {counts} configurations, {len(tables.presses)} presses", flush=True)
     entries = []

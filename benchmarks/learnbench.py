@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 import vistac
-from vistac.dataset import FINGERS, SplitCfg, open_dataset
+from vistac.dataset import FINGERS, SplitCfg, open_tables
 from vistac.provenance import provenance
 from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.references import LABELS, references
@@ -152,7 +152,7 @@ def reference_entries(data: Path, fingers=FINGERS) -> list[dict]:
     """The noise floor and the pinch baseline on the whole test split (unrotated images; the
     pinch summary is cached in the dataset's ``cache/``), or none for a dataset without the
     simulator's clean forces."""
-    t = open_dataset(data)
+    t = open_tables(data)
     refs = references(t, t.rows("test"), tuple(fingers))
     if refs is None:
         return []
@@ -162,7 +162,7 @@ def reference_entries(data: Path, fingers=FINGERS) -> list[dict]:
 
 def mean_entry(data: Path, fingers=FINGERS) -> dict:
     """Predicting the training split's mean label for every test configuration."""
-    t = open_dataset(data)
+    t = open_tables(data)
     rows = t.rows("test")
     metrics = {}
     for f in fingers:

@@ -57,7 +57,7 @@ from learnbench import (
 )
 from matplotlib.ticker import ScalarFormatter
 
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac_learn.train.config import TrainCfg
 from vistac_learn.train.run_folder import finished
 
@@ -189,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quiet", action="store_true")
     args = p.parse_args(argv)
     data = args.data or ensure_dataset(args.out / "data", headline_data(args.n, args.seed))
-    n_all = len(open_dataset(data).rows("train"))
+    n_all = len(open_tables(data).rows("train"))
     sizes = sorted({n_all if size <= 0 or size >= n_all else size for size in args.sizes})
     refs = [*reference_entries(data), mean_entry(data)]
     settings = {k: str(v) for k, v in vars(args).items()}

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 from learnbench import ensure_dataset, headline_data, save
 
-from vistac.dataset import FINGERS, open_dataset
+from vistac.dataset import FINGERS, open_tables
 from vistac.dataset.splits import SplitCfg
 from vistac_learn.data.fingertip_table import simulator_tips
 from vistac_learn.data.fingertips import LOCATOR_VERSION, LocatorCfg, colour_fingertips
@@ -76,7 +76,7 @@ def _errors(found, truth, hom) -> dict[str, tuple[float, float]]:
 def _cases(data: Path, photo: Path | None, n: int, seed: int, names: tuple[str, ...]):
     """(case name, image, truth, homography, finger colours) of every measured image: the
     clean dataset's images clean and perturbed, then the photo dataset's images."""
-    t = open_dataset(data)
+    t = open_tables(data)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     rows = np.random.default_rng(seed).permutation(len(t.configs))[:n]
     for row in rows:
@@ -91,7 +91,7 @@ def _cases(data: Path, photo: Path | None, n: int, seed: int, names: tuple[str, 
             yield name, p.rgb, truth, p.homography, colours
     if photo is None:
         return
-    t = open_dataset(photo)
+    t = open_tables(photo)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     for row in np.random.default_rng(seed).permutation(len(t.configs))[:n]:
         rgb = read_rgb(t.image_path(int(row)))
@@ -179,7 +179,7 @@ def speed(data: Path, n: int, rev: str) -> dict:
         before = importlib.util.module_from_spec(spec)
         sys.modules[spec.name] = before  # dataclasses look their module up
         spec.loader.exec_module(before)
-    t = open_dataset(data)
+    t = open_tables(data)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     imgs = [read_rgb(t.image_path(r)) for r in range(min(n, len(t.configs)))]
     secs = {"before": 0.0, "now": 0.0}
@@ -197,7 +197,7 @@ def grid(data: Path, n: int, seed: int, path: Path) -> None:
     """A JPEG of `n` images: clean, then each perturbation (as the benchmark draws them)."""
     import cv2
 
-    t = open_dataset(data)
+    t = open_tables(data)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     rows = np.random.default_rng(seed).permutation(len(t.configs))[:n]
     lines = []

@@ -42,7 +42,7 @@ from learnbench import (
     slug,
 )
 
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac_learn.models import count_macs
 from vistac_learn.train.build import build_model, input_size
 from vistac_learn.train.config import protocol_cfg
@@ -144,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     data = args.data or ensure_dataset(args.out / "data", headline_data(args.n))
     base = protocol_cfg("default", str(data), "")
     epochs = args.epochs or base.epochs
-    n_train = len(open_dataset(data).rows("train"))
+    n_train = len(open_tables(data).rows("train"))
     refs = [*reference_entries(data), mean_entry(data)]
     plan = [(name, base.variant) for name in args.models] + [(n, "tip") for n in args.tip_models]
     rows = []

@@ -48,7 +48,7 @@ from pinch_diagnosis import diagnose
 from pinch_prior import composed
 
 import vistac
-from vistac.dataset import FINGERS, open_dataset, unit_labels
+from vistac.dataset import FINGERS, open_tables, unit_labels
 from vistac.dataset.schema import clean_force_columns
 from vistac_learn.data.fingertip_table import (
     FingertipTable,
@@ -78,14 +78,14 @@ def cached_tips(photo: Path) -> FingertipTable | None:
     3000 photo images costs about 1100 CPU s)."""
     if not any((photo / "cache").glob("fingertips-*.parquet")):
         return None
-    return fingertip_table(open_dataset(photo))
+    return fingertip_table(open_tables(photo))
 
 
 def prior(photo: Path) -> dict:
     """Median angles of the simulator's geometry composed into the label through crops around
     the simulator's fingertips (`simulator_fingertips`) of the photo test split, and of the
     noise floor (no model, no locator)."""
-    t = open_dataset(photo)
+    t = open_tables(photo)
     tips = simulator_fingertips(t, int(t.render["image_size"]))
     rows = t.rows("test")
     floor = np.concatenate([unit_labels(t.configs[clean_force_columns(f)].to_numpy(float))
@@ -104,7 +104,7 @@ def locator_errors(photo: Path, found: FingertipTable) -> dict:
     """Per finger, on the photo test split: the located fingertips against the simulator's as
     drawn (`simulator_fingertips`): tip distance (px) median and 90th percentile, share within
     2 px and 3 deg, fingers not found."""
-    t = open_dataset(photo)
+    t = open_tables(photo)
     rows = t.rows("test")
     truth = simulator_fingertips(t, int(t.render["image_size"]))
     out = {}
@@ -146,7 +146,7 @@ def scored(run: Path, data: Path, name: str) -> dict:
 def split_of_the_rest(run: Path, photo: Path) -> dict:
     """Composed-label medians per finger: the model around located and around true fingertips,
     with the simulator's contact points, with all of its geometry (test split)."""
-    t = open_dataset(photo)
+    t = open_tables(photo)
     located = diagnose(run, "test")
     true = diagnose(run, "test", tips=simulator_fingertips(t, int(t.render["image_size"])))
     angles = {"located fingertips, model": located[METRIC]["model"]}

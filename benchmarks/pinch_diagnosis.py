@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from vistac.dataset import FINGERS, open_dataset
+from vistac.dataset import FINGERS, open_tables
 from vistac_learn.data.fingertip_table import FingertipTable, fingertip_table
 from vistac_learn.data.loading import loader
 from vistac_learn.evaluate.run import RETRAIN
@@ -35,7 +35,7 @@ def diagnose(run: Path, split: str = "val", tips: FingertipTable | None = None) 
     """Median angle to the cone mean per variant and finger, and the parts' median errors;
     the crops around `tips` (default: the located fingertips)."""
     cfg = TrainCfg(**json.loads((run / "config.json").read_text())["train"])
-    t = open_dataset(cfg.data)
+    t = open_tables(cfg.data)
     model = build_model(cfg)
     path = run / "checkpoints" / "best.pt"
     load_weights(model, load_checkpoint(path, ("model",), RETRAIN)["model"], path, RETRAIN)

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from vistac.dataset import FINGERS, open_dataset, unit_labels
+from vistac.dataset import FINGERS, open_tables, unit_labels
 from vistac.dataset.schema import clean_force_columns
 from vistac.provenance import provenance
 from vistac_learn.data.fingertip_table import FingertipTable, fingertip_table
@@ -46,7 +46,7 @@ def composed(data: Path, split: str = "test", tips: FingertipTable | None = None
              ) -> dict[str, np.ndarray]:
     """(N, 4) predictions of each geometry variant for the split's configurations, in crops
     around `tips` (default: the dataset's located fingertips)."""
-    t = open_dataset(data)
+    t = open_tables(data)
     rows = t.rows(split)
     ds = SampleSet(t, rows, SampleSpec(make_view("pinch"), 48, FINGERS),
                    tips=tips if tips is not None else fingertip_table(t))
@@ -79,7 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--data", required=True, type=Path)
     p.add_argument("--out", type=Path, default=Path(__file__).parent / "results")
     args = p.parse_args(argv)
-    t = open_dataset(args.data)
+    t = open_tables(args.data)
     rows = t.rows("test")
     floor = np.concatenate([unit_labels(t.configs[clean_force_columns(f)].to_numpy(float))
                             for f in FINGERS], axis=1)[rows]

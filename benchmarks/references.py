@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 from learnbench import mean_entry, save, table
 
-from vistac.dataset import FINGERS, open_dataset
+from vistac.dataset import FINGERS, open_tables
 from vistac_learn.data.fingertips import read_rgb
 from vistac_learn.evaluate import geometric, pinch
 from vistac_learn.evaluate.references import noise_floor
@@ -118,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--name", default="references")
     args = ap.parse_args(argv)
 
-    t = open_dataset(args.data)
+    t = open_tables(args.data)
     rows = t.rows(args.split)  # sorted row indices
     if args.limit:
         rows = rows[:args.limit]

@@ -43,7 +43,7 @@ import pandas as pd  # noqa: E402
 import study_replay as replay  # noqa: E402
 from studybench import V3, scene_file, twin_parser  # noqa: E402
 
-from vistac.dataset import open_dataset  # noqa: E402
+from vistac.dataset import open_tables  # noqa: E402
 from vistac.provenance import provenance  # noqa: E402
 from vistac_learn.metrics.scoring import score  # noqa: E402
 from vistac_sim.effects.presets import load_scene  # noqa: E402
@@ -141,7 +141,7 @@ def calibrate(args: argparse.Namespace) -> dict:
     pred = pd.read_parquet(pred_path)
     meta = json.loads((run / "config.json").read_text())
     run_data = Path(meta["dataset"]["path"])
-    run_tables = open_dataset(run_data)
+    run_tables = open_tables(run_data)
     made = json.loads((run_data / "manifest.json").read_text())["config"]
     same = {"n": made["n"], "data_seed": made["seed"], "split": made["split"]["fractions"],
             "n_objects": made["objects"]["n_objects"]}  # the run's dataset, another scene
@@ -156,7 +156,7 @@ def calibrate(args: argparse.Namespace) -> dict:
         data = replay.dataset(argparse.Namespace(**same, scene=str(scene), work=str(work / folder)))
         datasets.append(data)
         rows.append({"label": name, "changes": changes, "scene": str(scene),
-                     "metrics": predicted(pred, run_tables, open_dataset(data))})
+                     "metrics": predicted(pred, run_tables, open_tables(data))})
         print(f"{name}: {rows[-1]['metrics']}", flush=True)
     head = ["twin (cones)", *(h for h, _ in replay.STUDY_COLUMNS), "median ° to mean",
             "% same configurations"]

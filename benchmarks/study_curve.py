@@ -58,7 +58,7 @@ from study_replay import STUDY_KEYS, STUDY_ROWS, dataset, summarise, table, trai
 from studybench import V3, record, twin_parser  # noqa: E402
 
 import vistac_learn.evaluate.run as evaluate_module  # noqa: E402
-from vistac.dataset import open_dataset  # noqa: E402
+from vistac.dataset import open_tables  # noqa: E402
 from vistac.provenance import provenance  # noqa: E402
 from vistac_learn.data.fingertip_table import fingertip_table  # noqa: E402
 
@@ -221,7 +221,7 @@ def curve(args: argparse.Namespace) -> dict:
     work = Path(args.work) / f"n{args.n}"
     args.work = str(work)
     data = dataset(args)
-    tables = open_dataset(data)
+    tables = open_tables(data)
     counts = {s: len(tables.rows(s)) for s in ("train", "val", "test")}
     print(f"dataset {data}: {counts}", flush=True)
     if counts["test"] < 500:

@@ -46,7 +46,7 @@ from learnbench import reference_entries, run_entry  # noqa: E402
 from study_replay import RESULTS, dataset, fmt, summarise, train_fraction  # noqa: E402
 from studybench import V3, record, scene_file, twin_parser  # noqa: E402
 
-from vistac.dataset import open_dataset  # noqa: E402
+from vistac.dataset import open_tables  # noqa: E402
 from vistac.provenance import provenance  # noqa: E402
 from vistac_learn.evaluate.references import LABELS  # noqa: E402
 from vistac_sim.effects.presets import PRESETS  # noqa: E402
@@ -188,7 +188,7 @@ def gap(args: argparse.Namespace) -> dict:
         floors[v] = refs[0]["metrics"]["index"] if refs else None
     for seed in args.seeds:
         for v in variants:
-            tables = open_dataset(datasets[v])
+            tables = open_tables(datasets[v])
             extra = {"max_missing_pct": args.photo_max_missing_pct} if v == "photo" else {}
             t0 = time.perf_counter()
             e = run_entry(datasets[v], work / v, f"{v} seed {seed}", protocol="study",

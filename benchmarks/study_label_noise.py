@@ -69,7 +69,7 @@ import numpy as np  # noqa: E402
 from learnbench import cell_cpu_s, ensure_dataset, save, timed_runner  # noqa: E402
 
 import vistac  # noqa: E402
-from vistac.dataset import SplitCfg, open_dataset  # noqa: E402
+from vistac.dataset import SplitCfg, open_tables  # noqa: E402
 from vistac_learn.evaluate.references import noise_floor  # noqa: E402
 from vistac_learn.experiments.cells import mean_std, pm, read_rows  # noqa: E402
 from vistac_learn.experiments.label_noise import LabelNoiseCfg  # noqa: E402
@@ -159,7 +159,7 @@ def floors(out: Path, fingers: tuple[str, ...], levels, seeds: int) -> dict[floa
             folder = out / "data" / f"noise-{level:g}-seed-{s}"
             if not (folder / "manifest.json").exists():
                 continue
-            t = open_dataset(folder)
+            t = open_tables(folder)
             m = noise_floor(t, t.rows("test"), fingers)
             vals["angle"].append(np.mean([m[f]["angle_to_mean_median_deg"] for f in fingers]))
             vals["in_cone"].append(np.mean([m[f]["in_cone_pct"] for f in fingers]))
@@ -273,7 +273,7 @@ def main(argv: list[str] | None = None) -> int:
     work = Path(args.work)
     data = Path(args.data) if args.data else twin_data(work / "data", args.n, args.data_seed,
                                                        args.n_objects, Path(args.scene))
-    tables = open_dataset(data)
+    tables = open_tables(data)
     counts = {s: len(tables.rows(s)) for s in ("train", "val", "test")}
     levels = sorted(args.levels)
     models = {}

@@ -40,7 +40,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from learnbench import ensure_dataset, reference_entries, run_entry  # noqa: E402
 
-from vistac.dataset import SplitCfg, open_dataset  # noqa: E402
+from vistac.dataset import SplitCfg, open_tables  # noqa: E402
 from vistac.provenance import provenance  # noqa: E402
 from vistac_learn.metrics.scoring import STUDY_COLUMNS, score  # noqa: E402
 from vistac_learn.models import model_info  # noqa: E402
@@ -211,7 +211,7 @@ def replay(args: argparse.Namespace) -> dict:
     """Train and score everything (resuming), rewriting the results after each run."""
     work = Path(args.work)
     data = dataset(args)
-    tables = open_dataset(data)
+    tables = open_tables(data)
     counts = {s: len(tables.rows(s)) for s in ("train", "val", "test")}
     frac = train_fraction(tables, args.n_train)
     print(f"dataset {data}: {counts}; training on {args.n_train} (fraction {frac:.4f})",

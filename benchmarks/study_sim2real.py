@@ -82,7 +82,7 @@ from study_label_noise import (  # noqa: E402
 )
 
 import vistac  # noqa: E402
-from vistac.dataset import FINGERS, SplitCfg, open_dataset  # noqa: E402
+from vistac.dataset import FINGERS, SplitCfg, open_tables  # noqa: E402
 from vistac.dataset.files import write_table  # noqa: E402
 from vistac.dataset.ingest.config import IngestSources  # noqa: E402
 from vistac.dataset.schema import box_columns  # noqa: E402
@@ -165,7 +165,7 @@ def real_data(work: Path, args: argparse.Namespace) -> Path:
                                     objects=ObjectsCfg(paths=tuple(map(str, make_meshes(
                                         work / "meshes")))))
         ensure_dataset(gen, cfg)
-        configs = open_dataset(gen).configs
+        configs = open_tables(gen).configs
         objects = work / "real_objects.csv"
         with objects.open("w", newline="") as fh:
             w = csv.writer(fh)
@@ -190,7 +190,7 @@ def fill_boxes(real: Path, gen: Path) -> None:
     cols = [c for f in FINGERS for c in box_columns(f)]
     if np.isfinite(ingested[cols].to_numpy(float)).all():
         return
-    boxes = open_dataset(gen).configs.set_index("config_id")[cols]
+    boxes = open_tables(gen).configs.set_index("config_id")[cols]
     ingested[cols] = boxes.loc[ingested["config_id"].to_numpy()].to_numpy(float)
     write_table(table, ingested)
 
@@ -357,7 +357,7 @@ def main(argv: list[str] | None = None) -> int:
                                                     args.n_objects, Path(args.scene))
     real = real_data(work, args)
     man = json.loads((real / "manifest.json").read_text())
-    sim_train = len(open_dataset(sim).rows("train"))
+    sim_train = len(open_tables(sim).rows("train"))
     if args.data_only:
         print(f"datasets: {sim} {real}: {man['counts']}")
         return 0

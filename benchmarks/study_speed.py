@@ -24,7 +24,7 @@ from learnbench import cpu_s, ensure_dataset
 from study_replay import train_fraction
 
 import vistac_learn.data.samples as samples
-from vistac.dataset import SplitCfg, open_dataset
+from vistac.dataset import SplitCfg, open_tables
 from vistac.provenance import provenance
 from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.loop import train_run_folder
@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     work = Path(args.work)
     data = ensure_dataset(work / "data", GenerateCfg.from_preset(
         "lab", noise=0.05, n=args.n, seed=0, split=SplitCfg(fractions=(0.5, 0.25, 0.25))))
-    frac = train_fraction(open_dataset(data), args.n_train)
+    frac = train_fraction(open_tables(data), args.n_train)
     budget = samples.RENDER_CACHE_BYTES
     arms = {}
     for name, cache in (("rendered every epoch", 0), ("rendered once", budget)):

@@ -312,7 +312,7 @@ def sim2real(cfg: Sim2RealCfg, base: TrainCfg, *, max_cells: int | None = None,
         max_cells: Stop after this many new cells (call again to continue).
         progress: Progress bar on stderr.
         runner: Runs the cells' training jobs (``run(jobs)`` yields (position, result); default
-            `vistac_learn.train.job.LocalRunner`, e.g. one that also times each job).
+            `vistac_learn.train.job.LocalJobRunner`, e.g. one that also times each job).
 
     Returns:
         The trained cells (rows of ``cells.csv``); the report is ``cfg.out/report.md``.
@@ -344,7 +344,7 @@ def label_noise(cfg: LabelNoiseCfg, base: TrainCfg, *, max_cells: int | None = N
         max_cells: Stop after this many new cells (call again to continue).
         progress: Progress bar on stderr.
         runner: Runs the cells' training jobs (``run(jobs)`` yields (position, result); default
-            `vistac_learn.train.job.LocalRunner`, e.g. one that also times each job).
+            `vistac_learn.train.job.LocalJobRunner`, e.g. one that also times each job).
 
     Returns:
         The trained cells (rows of ``cells.csv``); the report is ``cfg.out/report.md``.

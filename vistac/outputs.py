@@ -34,9 +34,9 @@ class Dataset:
     @cached_property
     def tables(self):
         """The checked tables (`vistac.dataset.reader.DatasetTables`), read once."""
-        from vistac.dataset import open_dataset
+        from vistac.dataset import open_tables
 
-        return open_dataset(self.path)
+        return open_tables(self.path)
 
     @cached_property
     def manifest(self) -> dict[str, Any]:

@@ -75,13 +75,13 @@ def machine() -> dict:
 def dataset_fingerprints(datasets) -> dict[str, str | None]:
     """Each dataset folder -> its fingerprint (`DatasetTables.fingerprint`), None for one that
     cannot be read."""
-    from vistac.dataset import open_dataset
+    from vistac.dataset import open_tables
     from vistac.errors import UserError
 
     out = {}
     for d in datasets:
         try:
-            out[str(d)] = open_dataset(d).fingerprint()
+            out[str(d)] = open_tables(d).fingerprint()
         except (UserError, OSError):
             out[str(d)] = None
     return out

@@ -12,7 +12,7 @@ import pyarrow.parquet as pq
 import pytest
 from learn_fixtures import make_dataset
 
-from vistac.dataset import FINGERS, open_dataset, press_row, press_rows, unit_labels
+from vistac.dataset import FINGERS, open_tables, press_row, press_rows, unit_labels
 from vistac.dataset.schema import (
     FAILED_OBJECTS_TYPE,
     FORMAT_VERSION,
@@ -77,11 +77,11 @@ def test_press_rows_put_each_finger_and_repeat_in_its_own_columns():
 def test_interrupted_run_is_named(tmp_path):
     (tmp_path / ".partial").mkdir()
     with pytest.raises(UserError, match="interrupted run"):
-        open_dataset(tmp_path)
+        open_tables(tmp_path)
 
 
-def test_open_dataset_reads_cones_sorted_by_config(ds_dir):
-    t = open_dataset(ds_dir)
+def test_open_tables_reads_cones_sorted_by_config(ds_dir):
+    t = open_tables(ds_dir)
     assert list(t.configs["config_id"]) == list(range(8))
     for f in ("index", "thumb"):
         assert len(t.cones[f]) == 8
@@ -93,7 +93,7 @@ def test_open_dataset_reads_cones_sorted_by_config(ds_dir):
 
 
 def test_splits_are_whole_configurations(ds_dir):
-    t = open_dataset(ds_dir)
+    t = open_tables(ds_dir)
     rows = {s: set(t.rows(s)) for s in ("train", "val", "test")}
     assert rows["train"] | rows["val"] | rows["test"] == set(range(8))
     assert not (rows["train"] & rows["val"]) and not (rows["train"] & rows["test"])
@@ -104,7 +104,7 @@ def test_splits_are_whole_configurations(ds_dir):
 def test_incomplete_dataset_is_refused(tmp_path):
     d = make_dataset(tmp_path / "ds", n=3, repeats=2, size=32, complete=False)
     with pytest.raises(UserError, match="not complete"):
-        open_dataset(d)
+        open_tables(d)
 
 
 def test_missing_column_and_bad_label_name_file_and_row(ds_dir, tmp_path):
@@ -112,15 +112,15 @@ def test_missing_column_and_bad_label_name_file_and_row(ds_dir, tmp_path):
     p = pd.read_parquet(d / "presses.parquet").drop(columns=["r_z_thumb"])
     p.to_parquet(d / "presses.parquet")
     with pytest.raises(UserError, match=r"presses.parquet: missing column\(s\) r_z_thumb"):
-        open_dataset(d)
+        open_tables(d)
     d = _copy(ds_dir, tmp_path / "b")
     p = pd.read_parquet(d / "presses.parquet")
     p.loc[4, "r_y_index"] = 3.0
     p.to_parquet(d / "presses.parquet")
     with pytest.raises(UserError, match="row 4: \\(index\\) label"):
-        open_dataset(d)
+        open_tables(d)
     with pytest.raises(UserError, match="manifest.json: missing"):
-        open_dataset(tmp_path)
+        open_tables(tmp_path)
 
 
 def test_real_recording_layout_without_sim_columns(ds_dir, tmp_path):
@@ -128,7 +128,7 @@ def test_real_recording_layout_without_sim_columns(ds_dir, tmp_path):
     c = pd.read_parquet(d / "configs.parquet")
     sim_only = [k for k in c.columns if k.startswith(("tip_", "normal_", "force_clean_", "bbox_"))]
     c.drop(columns=sim_only).to_parquet(d / "configs.parquet")
-    t = open_dataset(d)
+    t = open_tables(d)
     assert not t.has_boxes("index") and t.box(0, "index") is None
 
 
@@ -136,13 +136,13 @@ def test_manifest_must_be_json(tmp_path, ds_dir):
     d = _copy(ds_dir, tmp_path / "c")
     (d / "manifest.json").write_text("{not json")
     with pytest.raises(UserError, match="not valid JSON"):
-        open_dataset(d)
+        open_tables(d)
     (d / "manifest.json").write_text(json.dumps({"complete": True}))
     with pytest.raises(UserError, match="format_version missing"):
-        open_dataset(d)
+        open_tables(d)
     (d / "manifest.json").write_text(json.dumps({"complete": True,
                                                  "format_version": FORMAT_VERSION}))
-    assert len(open_dataset(d).configs) == 8
+    assert len(open_tables(d).configs) == 8
 
 
 def test_nested_cells_round_trip_through_parquet(tmp_path):
@@ -174,8 +174,8 @@ def test_format_1_is_read_and_older_or_newer_refused_in_one_line(tmp_path, ds_di
                             (FORMAT_VERSION + 1, "update vistac"), (1.0, "make the dataset")]:
         (d / "manifest.json").write_text(json.dumps(man | {"format_version": version}))
         if needle is None:
-            assert len(open_dataset(d).configs) == 8
+            assert len(open_tables(d).configs) == 8
             continue
         with pytest.raises(UserError, match=needle) as err:
-            open_dataset(d)
+            open_tables(d)
         assert "\n" not in str(err.value) and "reads (1, 2)" in str(err.value)

@@ -155,11 +155,11 @@ def text_in_metrics(raw: bytes) -> bytes:
 def cache(change: Callable[[Path], None]) -> Callable:
     """A dataset copy whose fingertip cache is located, then damaged."""
     def damage(env, case_dir: Path, out: Path) -> dict:
-        from vistac.dataset import open_dataset
+        from vistac.dataset import open_tables
         from vistac_learn.data.fingertip_table import fingertip_table
 
         data = _data_copy(env, case_dir)
-        fingertip_table(open_dataset(data))
+        fingertip_table(open_tables(data))
         (path,) = (data / "cache").glob("fingertips-*.parquet")
         change(path)
         return {"bad": data}

@@ -55,15 +55,15 @@ def test_train_says_how_many_fingertips_were_found(env, tmp_path, capsys):
 
 def test_the_fingerprint_covers_the_labels(env, tmp_path, capsys):
     """Labels changed after training are not the run's dataset any more."""
-    from vistac.dataset import open_dataset
+    from vistac.dataset import open_tables
 
     data = _data_copy(env, tmp_path)
-    before = open_dataset(data)
+    before = open_tables(data)
     fingerprint, images = before.fingerprint(), before.image_fingerprint()
     presses = pd.read_parquet(data / "presses.parquet")
     presses[["r_y_index", "r_z_index"]] = presses[["r_z_index", "r_y_index"]].to_numpy()
     presses.to_parquet(data / "presses.parquet", index=False)
-    after = open_dataset(data)
+    after = open_tables(data)
     assert after.fingerprint() != fingerprint
     assert after.image_fingerprint() == images  # the fingertip cache still holds
     run = tmp_path / "run"

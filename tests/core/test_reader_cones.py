@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 from learn_fixtures import make_dataset
 
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac.errors import UserError
 
 
@@ -17,7 +17,7 @@ def test_cones_are_each_configurations_presses_in_repeat_order(tmp_path):
     presses = pd.read_parquet(root / "presses.parquet")
     shuffled = presses.sample(frac=1.0, random_state=1)
     shuffled.to_parquet(root / "presses.parquet", index=False)
-    tables = open_dataset(root)
+    tables = open_tables(root)
     for row, cid in enumerate(tables.configs["config_id"]):
         want = presses[presses["config_id"] == cid].sort_values("repeat")
         for f in ("index", "thumb"):
@@ -30,4 +30,4 @@ def test_configuration_without_presses_is_refused(tmp_path):
     presses = pd.read_parquet(root / "presses.parquet")
     presses[presses["config_id"] != 3].to_parquet(root / "presses.parquet", index=False)
     with pytest.raises(UserError, match=r"configs.parquet: row 3: config_id 3 has no presses"):
-        open_dataset(root)
+        open_tables(root)

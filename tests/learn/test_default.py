@@ -18,7 +18,7 @@ import pytest
 import torch
 
 from vistac.cli import main
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac.errors import UserError
 from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.evaluate.config import EvaluateCfg
@@ -44,7 +44,7 @@ def _train_loss(run, split: str = "train") -> float:
     cfg = protocol_cfg("default", "", "")
     meta = json.loads((run / "config.json").read_text())
     cfg = type(cfg)(**meta["train"])
-    t = open_dataset(cfg.data)
+    t = open_tables(cfg.data)
     model = build_model(cfg)
     model.load_state_dict(torch.load(run / "checkpoints" / "last.pt", weights_only=True)["model"])
     model.eval()
@@ -56,7 +56,7 @@ def _train_loss(run, split: str = "train") -> float:
 
 
 def _mean_predictor_loss(data, fingers=("index", "thumb"), split="train") -> float:
-    t = open_dataset(data)
+    t = open_tables(data)
     rows = t.rows(split)
     y = np.concatenate([t.mean_label(f)[rows] for f in fingers], axis=1)
     return float(((y - y.mean(0)) ** 2).mean())
@@ -72,7 +72,7 @@ def test_sanity_a_model_fits_64_samples(generated, tmp_path, protocol, model, ep
               cache_dir=str(tmp_path / "cache"))
     kw |= dict(batch_size=8) if protocol == "default" else dict(rotations="none")
     cfg = protocol_cfg(protocol, str(generated), str(tmp_path / "run"), **kw)
-    n = len(open_dataset(generated).rows("val"))
+    n = len(open_tables(generated).rows("val"))
     assert 50 <= n <= 90, n  # the ~64 samples of the standard check
     run = train_run_folder(cfg, progress=False)
     fingers = ("index", "thumb") if protocol == "default" else ("index",)
@@ -90,7 +90,7 @@ def test_default_training_beats_a_mean_predictor(generated, tmp_path):
                                         epochs=25, batch_size=16, device="cpu", **NO_APPEARANCE),
                            progress=False)
     res = evaluate_run(EvaluateCfg(run=str(run), no_plots=True))
-    t = open_dataset(generated)
+    t = open_tables(generated)
     for f in ("index", "thumb"):
         mean = t.mean_label(f)[t.rows("train")].mean(0)
         rows = t.rows("test")
@@ -211,7 +211,7 @@ def pinch_run(generated, tmp_path_factory):
 
 
 def _val_batch(cfg, data: str):
-    t = open_dataset(data)
+    t = open_tables(data)
     ds = build_samples(cfg, t, "val", 48, fingertip_table(t, cache_dir=cfg.cache_dir))
     b = ds.batch(np.arange(len(ds)))
     return t, b
@@ -255,7 +255,7 @@ def test_init_from_a_sim_run_onto_data_without_contacts(generated, pinch_run, tm
 
     real = tmp_path / "real"
     shutil.copytree(generated, real, ignore=shutil.ignore_patterns("cache"))
-    c = open_dataset(real).configs
+    c = open_tables(real).configs
     drop = [k for k in c if k.startswith(("target_", "approach_", "normal_", "tip_", "push_"))]
     c = c.drop(columns=drop).assign(camera_x=np.nan, camera_y=np.nan, px_per_m=np.nan)
     c.to_parquet(real / "configs.parquet")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import vistac
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.geometric import baseline_predictions
@@ -22,7 +22,7 @@ def generated(tmp_path_factory):
 
 
 def test_generated_dataset_trains_and_evaluates(generated, tmp_path):
-    t = open_dataset(generated)
+    t = open_tables(generated)
     assert len(t.configs) == 30 and t.has_boxes("index") and t.has_boxes("thumb")
     cfg = protocol_cfg("study", str(generated), str(tmp_path / "run"), model="smallconv",
                        epochs=1, n_rotations=2, device="cpu", cache_dir=str(tmp_path / "cache"))
@@ -36,7 +36,7 @@ def test_generated_dataset_trains_and_evaluates(generated, tmp_path):
 
 def test_geometric_baseline_reads_the_simulated_normal(generated, tmp_path):
     """On simulated images the baseline's direction is close to the mesh normal at contact."""
-    t = open_dataset(generated)
+    t = open_tables(generated)
     rows = t.rows(None)
     pred, item_row, _, failures = baseline_predictions(t, rows, ("index", "thumb"),
                                                        RotationCfg("none"))

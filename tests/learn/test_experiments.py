@@ -21,7 +21,7 @@ import torch
 from learn_fixtures import make_dataset
 
 from vistac.cli import main
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac_learn.experiments.label_noise import noisy_presses
 
 TRAIN = ["--protocol", "study", "--model", "smallconv", "--epochs", "1", "--n-rotations", "2",
@@ -138,8 +138,8 @@ def test_label_noise_end_to_end(data, tmp_path):
     assert "**Finding**" in report and "angle to clean label" in report
     assert (out / "label_noise.png").stat().st_size > 10_000
     # the labels: drawn reproducibly from the clean forces, per level and seed
-    src = open_dataset(data["real"])
-    noisy = open_dataset(out / "data" / "noise-0.2-seed-1")
+    src = open_tables(data["real"])
+    noisy = open_tables(out / "data" / "noise-0.2-seed-1")
     again = noisy_presses(src.configs, src.presses, 0.2, 1)
     assert np.allclose(noisy.presses[again.columns].to_numpy(float), again.to_numpy(float))
     other = noisy_presses(src.configs, src.presses, 0.2, 0)

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from vistac.dataset import FINGERS, open_dataset
+from vistac.dataset import FINGERS, open_tables
 from vistac_learn.data.finger_masks import colour_mask, finger_masks
 from vistac_learn.data.fingertip_table import fingertip_table, located_in, simulator_tips
 from vistac_learn.data.fingertips import Fingertip, LocatorCfg
@@ -34,7 +34,7 @@ def _angle(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def test_located_tips_and_axes_match_the_simulator(small_dataset):
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     tip_err, axis_err = [], []
     for row in range(len(t.configs)):
@@ -52,7 +52,7 @@ def test_located_tips_are_unbiased(small_dataset):
     """The located tip and the simulator's agree on average to a fraction of a pixel: both in
     the same pixel coordinates (`PIXEL_CENTRE`; compared unconverted they were 0.5 px apart on
     each axis)."""
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     diff = []
     for row in range(len(t.configs)):
@@ -84,7 +84,7 @@ def test_a_finger_cut_short_by_the_border_keeps_its_axis(slant):
 
 
 def test_rotating_the_image_rotates_the_located_finger(small_dataset):
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     img = read_rgb(t.image_path(0))
     h, w = img.shape[:2]
@@ -113,7 +113,7 @@ def test_a_missing_finger_is_reported_not_guessed():
 
 
 def test_fingertip_table_is_cached_and_small(small_dataset, tmp_path):
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     a = fingertip_table(t, cache_dir=tmp_path)
     files = list(tmp_path.glob("fingertips-*.parquet"))
     assert len(files) == 1 and files[0].stat().st_size < 200 * len(t.configs) + 4096
@@ -135,7 +135,7 @@ def test_fingers_are_found_under_image_effects(preset, tmp_path):
     out = tmp_path / preset
     assert main(["generate", "--n", "12", "--preset", preset, "--seed", "3", "--workers", "1",
                  "--no-progress", "--out", str(out)]) == 0
-    t = open_dataset(out)
+    t = open_tables(out)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     for row in range(len(t.configs)):
         found = locate_fingertips(read_rgb(t.image_path(row)), colours)
@@ -147,7 +147,7 @@ def test_fingers_are_found_in_perturbed_images(small_dataset, name):
     """Photographic tables and objects, restyled overlays, light, tilt, noise/blur/JPEG: every
     finger of the first images still found within the agreed tolerance of the truth (moved by
     the perturbation's homography)."""
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     k = PERTURBATIONS.index(name)
     for row in range(8):
@@ -175,14 +175,14 @@ def test_the_cache_key_follows_the_locator_version(small_dataset, tmp_path, monk
     import vistac_learn.data.fingertip_table as tip_table
     import vistac_learn.data.fingertips as fingertips
 
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     before = tip_table._cache_path(t, LocatorCfg(), tmp_path)
     monkeypatch.setattr(fingertips, "LOCATOR_VERSION", fingertips.LOCATOR_VERSION + 1)
     assert tip_table._cache_path(t, LocatorCfg(), tmp_path) != before
 
 
 def test_located_in_serves_given_images(small_dataset):
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     rows = np.array([1, 3])
     imgs = [read_rgb(t.image_path(r)) for r in rows]
     table = located_in(t, rows, imgs)
@@ -192,7 +192,7 @@ def test_located_in_serves_given_images(small_dataset):
 
 
 def test_the_loose_colour_mask_covers_the_finger(small_dataset):
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     img = read_rgb(t.image_path(0))
     hsv = cv2.cvtColor(img, cv2.COLOR_RGB2HSV_FULL)
@@ -214,7 +214,7 @@ def test_simulator_fingertips_follow_a_moved_overlay_and_a_tilted_camera(tmp_pat
     out = tmp_path / "harsh"
     assert main(["generate", "--n", "6", "--preset", "harsh", "--seed", "7", "--workers", "1",
                  "--no-progress", "--out", str(out)]) == 0
-    t = open_dataset(out)
+    t = open_tables(out)
     assert (t.configs["overlay_index_dx"] != 0).all() and (t.configs["camera_tilt_deg"] > 0).all()
     # the rendered fingers keep their colours: the colour fit alone finds them (and fast)
     found = fingertip_table(t, LocatorCfg(segmenter="off"), cache_dir=tmp_path / "cache")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from learn_fixtures import make_dataset
 
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.geometric import baseline_predictions, predict_image
 
@@ -23,7 +23,7 @@ def frictionless(tmp_path_factory):
 
 
 def test_recovers_the_normal_at_every_rotation(frictionless):
-    t = open_dataset(frictionless)
+    t = open_tables(frictionless)
     rows = t.rows(None)
     pred, item_row, item_rot, failures = baseline_predictions(
         t, rows, ("index", "thumb"), RotationCfg("fixed", n=5, step_deg=72.0))
@@ -38,7 +38,7 @@ def test_recovers_the_normal_at_every_rotation(frictionless):
 
 
 def test_missing_finger_falls_back_straight_into_the_pad(frictionless):
-    t = open_dataset(frictionless)
+    t = open_tables(frictionless)
     img = np.full((64, 64, 3), 207, np.uint8)
     pred, failures = predict_image(img, {f: t.finger_rgb(f) for f in ("index", "thumb")},
                                    ("index",))

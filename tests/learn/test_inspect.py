@@ -59,9 +59,9 @@ def test_arrows_point_away_from_the_contact_on_a_dataset(tmp_path):
     """The fixture draws each finger against an edge and labels the force from the geometry
     (normal plus at most 0.3 of it sideways): the arrow is within atan(0.3) (+ noise) of the
     direction from the contact to the fingertip, in the image."""
-    from vistac.dataset import open_dataset
+    from vistac.dataset import open_tables
 
-    tables = open_dataset(make_dataset(tmp_path / "d", n=6, repeats=3, noise=0.01))
+    tables = open_tables(make_dataset(tmp_path / "d", n=6, repeats=3, noise=0.01))
     c = tables.configs
     for row in range(len(c)):
         for f, a in finger_arrows(tables, row, None, simulated=True).items():

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from learn_fixtures import make_dataset
 
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.job import JobCfg, ScoreCfg, run_job
 
@@ -17,7 +17,7 @@ from vistac_learn.train.job import JobCfg, ScoreCfg, run_job
 def blind_test_split(tmp_path_factory):
     """A tiny dataset whose test images show no fingers (every fingertip of the split lost)."""
     data = make_dataset(tmp_path_factory.mktemp("job") / "d", n=8, repeats=2, size=64)
-    tables = open_dataset(data)
+    tables = open_tables(data)
     for row in tables.rows("test"):
         path = tables.image_path(int(row))
         cv2.imwrite(str(path), np.zeros_like(cv2.imread(str(path))))

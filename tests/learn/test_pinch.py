@@ -17,7 +17,7 @@ import pytest
 import torch
 
 from tests.learn_fixtures import make_dataset
-from vistac.dataset import FINGERS, open_dataset
+from vistac.dataset import FINGERS, open_tables
 from vistac.dataset.schema import PIXEL_CENTRE
 from vistac.projection import Projection
 from vistac_learn.data.contacts import contact_truth
@@ -130,7 +130,7 @@ def test_the_model_outputs_the_fingers_it_is_asked_for():
 
 def test_contact_truth_lies_on_the_drawn_pads(tmp_path):
     data = make_dataset(tmp_path / "ds", n=12)
-    t = open_dataset(data)
+    t = open_tables(data)
     truth = contact_truth(t)
     assert truth.known.all()
     tips = fingertip_table(t, cache_dir=tmp_path / "cache")
@@ -143,11 +143,11 @@ def test_contact_truth_lies_on_the_drawn_pads(tmp_path):
             assert truth.axis[row, i] @ tip.axis > np.cos(np.radians(3))
     configs = t.configs.drop(columns=[c for c in t.configs if c.startswith("target_")])
     configs.to_parquet(data / "configs.parquet")
-    assert not contact_truth(open_dataset(data)).known.any()
+    assert not contact_truth(open_tables(data)).known.any()
     # a rolled camera turns the image about its centre: the contact and the axis turn with it
     moved = t.configs.assign(camera_roll_deg=np.where(np.arange(len(t.configs)) == 0, 2.0, 0.0))
     moved.to_parquet(data / "configs.parquet")
-    rolled = contact_truth(open_dataset(data))
+    rolled = contact_truth(open_tables(data))
     assert rolled.known.all()
     np.testing.assert_array_equal(rolled.point[1:], truth.point[1:])
     centre = 96 / 2 - PIXEL_CENTRE
@@ -164,7 +164,7 @@ def test_clean_contact_truth_is_the_plain_top_view_bit_for_bit(tmp_path):
     """The one projection (`vistac.projection`) gives a plain top view's targets exactly as the
     formula the learner used before it: u = (x - camera_x) s + W/2 - 0.5, v = -(y - camera_y)
     s + H/2 - 0.5, the axis (x, -y) normalised."""
-    t = open_dataset(make_dataset(tmp_path / "ds", n=12))
+    t = open_tables(make_dataset(tmp_path / "ds", n=12))
     truth, c = contact_truth(t), t.configs
     s, cx, cy = (c[k].to_numpy(float) for k in ("px_per_m", "camera_x", "camera_y"))
     for i, f in enumerate(FINGERS):
@@ -185,7 +185,7 @@ def test_photo_contact_truth_lies_on_the_pads(tmp_path):
     out = tmp_path / "photo"
     assert main(["generate", "--n", "6", "--preset", "photo", "--seed", "5", "--workers", "1",
                  "--no-progress", "--out", str(out)]) == 0
-    t = open_dataset(out)
+    t = open_tables(out)
     assert (t.configs["camera_fovy_deg"] > 0).all() and (t.configs["camera_tilt_deg"] > 0).all()
     truth = contact_truth(t)
     assert truth.known.all()

@@ -13,7 +13,7 @@ import pytest
 from learn_fixtures import INDEX_RGB, TABLE, THUMB_RGB, make_dataset
 
 from vistac.cli import main
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac_learn.data.variants import rotation_matrix
 from vistac_learn.evaluate import references as refs_mod
 from vistac_learn.evaluate.config import EvaluateCfg
@@ -139,13 +139,13 @@ def test_missing_fingers_fall_back_straight_into_the_pad():
 
 
 def test_noise_floor_is_zero_without_noise_and_positive_with_it(tmp_path):
-    clean = open_dataset(make_dataset(tmp_path / "clean", n=8, repeats=4, size=64, noise=0.0))
+    clean = open_tables(make_dataset(tmp_path / "clean", n=8, repeats=4, size=64, noise=0.0))
     fl = noise_floor(clean, clean.rows(None), ("index", "thumb"))
     for f in ("index", "thumb"):
         assert fl[f]["angle_to_mean_median_deg"] == pytest.approx(0.0, abs=1e-6)
         assert fl[f]["angle_to_mean_mean_deg"] == pytest.approx(0.0, abs=1e-6)
         assert fl[f]["in_cone_pct"] == 100.0 and fl[f]["mse_mean"] == pytest.approx(0.0, abs=1e-12)
-    noisy = open_dataset(make_dataset(tmp_path / "noisy", n=8, repeats=4, size=64, noise=0.05))
+    noisy = open_tables(make_dataset(tmp_path / "noisy", n=8, repeats=4, size=64, noise=0.05))
     fl = noise_floor(noisy, noisy.rows(None), ("index",))
     assert 0.1 < fl["index"]["angle_to_mean_median_deg"] < 5.0
 
@@ -155,7 +155,7 @@ def test_no_references_for_data_without_clean_forces(tmp_path):
     configs = pd.read_parquet(root / "configs.parquet")
     configs.drop(columns=[c for c in configs if c.startswith("force_clean_")]).to_parquet(
         root / "configs.parquet", index=False)
-    t = open_dataset(root)
+    t = open_tables(root)
     assert not has_clean_forces(t, ("index",))
     assert references(t, t.rows(None), ("index",)) is None
 
@@ -227,7 +227,7 @@ def test_demo_report_shows_the_references(tiny_run, tmp_path):
 
 
 def test_the_pinch_cache_follows_the_labels(tmp_path):
-    t = open_dataset(make_dataset(tmp_path / "ds", n=4, repeats=2, size=64))
+    t = open_tables(make_dataset(tmp_path / "ds", n=4, repeats=2, size=64))
     rows = t.rows(None)
     first = refs_mod.pinch_reference(t, rows, ("index",), cache_dir=tmp_path / "cache")
     assert len(list((tmp_path / "cache").glob("pinch-*.json"))) == 1
@@ -244,7 +244,7 @@ def test_the_pinch_cache_follows_the_locator(tmp_path, monkeypatch):
     import vistac_learn.data.segmenter as segmenter
     from vistac_learn.evaluate.pinch import PinchCfg
 
-    t = open_dataset(make_dataset(tmp_path / "ds", n=4, repeats=2, size=64))
+    t = open_tables(make_dataset(tmp_path / "ds", n=4, repeats=2, size=64))
     rows, key = t.rows(None), ("index",)
     before = refs_mod._cache_path(t, rows, key, PinchCfg(), tmp_path)
     monkeypatch.setattr(segmenter, "weights_digest", lambda *a, **k: "other weights")

@@ -10,7 +10,7 @@ import pytest
 import torch
 from learn_fixtures import make_dataset
 
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac.errors import UserError
 from vistac_learn.data.fingertip_table import fingertip_table
 from vistac_learn.data.loading import EpochBatches, loader
@@ -30,7 +30,7 @@ SPEC_FIELDS = {f.name for f in dataclasses.fields(SampleSpec)}
 @pytest.fixture(scope="module")
 def ds(tmp_path_factory):
     root = make_dataset(tmp_path_factory.mktemp("data") / "ds", n=8, repeats=3, size=128)
-    t = open_dataset(root)
+    t = open_tables(root)
     return t, fingertip_table(t, cache_dir=root.parent / "cache")
 
 

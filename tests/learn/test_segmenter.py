@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import torch
 
-from vistac.dataset import FINGERS, open_dataset
+from vistac.dataset import FINGERS, open_tables
 from vistac.errors import UserError
 from vistac_learn.data.fingertip_table import simulator_tips
 from vistac_learn.data.fingertips import Fingertip, LocatorCfg, colour_fingertips
@@ -161,7 +161,7 @@ def test_refined_fit_reads_the_colour_only_inside_the_segmenters_finger():
 def test_the_default_locator_keeps_the_colour_fit_on_clean_renders(small_dataset):
     """On clean renders the refined fit is the colour fit, to the last bit: the segmenter only
     picks the blob."""
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     cfg = LocatorCfg()
     assert cfg.segmenter == "refine"
@@ -181,7 +181,7 @@ def test_the_default_locator_keeps_the_colour_fit_on_clean_renders(small_dataset
 
 
 def test_segmenter_finds_the_fingers_of_a_clean_render_like_its_colours(small_dataset):
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     for row in range(3):
         rgb = read_rgb(t.image_path(row))
@@ -197,7 +197,7 @@ def test_segmenter_reads_smaller_images_at_the_scale_it_learned(tmp_path):
     fingers (at 96 px directly, two thumbs were taken 20 px away)."""
     from tests.learn_fixtures import make_dataset
 
-    t = open_dataset(make_dataset(tmp_path / "ds", n=12))
+    t = open_tables(make_dataset(tmp_path / "ds", n=12))
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     for row in range(len(t.configs)):
         rgb = read_rgb(t.image_path(row))
@@ -213,7 +213,7 @@ def test_learned_locator_finds_tips_in_images_perturbed_every_way_at_once(small_
     """Every axis of perturb.py at once (photo tables and objects, restyled overlays, light,
     tilt, noise/blur/JPEG) on the first 8 images: the learned fit alone places 15 of the 16
     fingers within tolerance (the colour fit 11; measured with the shipped weights)."""
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     k = PERTURBATIONS.index("all")
     good = 0
@@ -242,7 +242,7 @@ def test_fingers_are_found_in_photo_preset_images(tmp_path):
     out = tmp_path / "photo"
     assert main(["generate", "--n", "10", "--preset", "photo", "--seed", "5", "--workers", "1",
                  "--no-progress", "--out", str(out)]) == 0
-    t = open_dataset(out)
+    t = open_tables(out)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     good = 0
     for row in range(len(t.configs)):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from learn_fixtures import make_dataset
 
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac.errors import UserError
 from vistac_learn.data import variants as V
 from vistac_learn.data.samples import SampleSet, SampleSpec
@@ -86,7 +86,7 @@ def test_auto_canny_finds_faint_object_and_nothing_on_flat():
 
 @pytest.mark.parametrize("name", V.VARIANTS)
 def test_every_variant_shape_and_background(ds_dir, name):
-    t = open_dataset(ds_dir)
+    t = open_tables(ds_dir)
     cfg = V.VariantCfg(name, size=48)
     img = V.read_rgb(t.image_path(0))
     boxes = {f: t.box(0, f) for f in ("index", "thumb")}
@@ -98,7 +98,7 @@ def test_every_variant_shape_and_background(ds_dir, name):
 
 
 def test_finger_stays_inside_rotated_box(ds_dir):
-    t = open_dataset(ds_dir)
+    t = open_tables(ds_dir)
     img = V.read_rgb(t.image_path(1))
     h, w = img.shape[:2]
     for ang in (18.0, 90.0, 234.0):
@@ -121,7 +121,7 @@ def test_box_variant_without_boxes_is_a_clear_error(ds_dir, tmp_path):
     c = pd.read_parquet(d / "configs.parquet")
     c.drop(columns=[k for k in c.columns if k.startswith("bbox_")]).to_parquet(
         d / "configs.parquet")
-    t = open_dataset(d)
+    t = open_tables(d)
     base = SampleSet(t, t.rows(None), SampleSpec(make_view("color-base"), 24, ("index",)))
     assert base.batch(np.arange(4))["image"].shape == (4, 3, 24, 24)
     with pytest.raises(UserError, match="needs columns bbox_index"):

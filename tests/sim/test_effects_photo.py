@@ -13,7 +13,7 @@ import pytest
 from pressed_scenes import pressed_scene
 
 from vistac.cli import main
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac.errors import UserError
 from vistac.textures import BANK_PHOTOS
 from vistac_sim.effects import EffectsCfg, build_pipeline
@@ -349,7 +349,7 @@ def test_photo_keeps_labels_and_writes_masks(tmp_path):
                                  "values": {"table": 0, "object": 1, "index": 2, "thumb": 3}}
     assert manifest["config"]["render"]["masks"] is True
     for name, configs in (("clean", ca), ("photo", cb)):
-        dataset = open_dataset(tmp_path / name)
+        dataset = open_tables(tmp_path / name)
         for i, row in configs.iterrows():
             img = cv2.imread(str(dataset.image_path(i)))
             mask = cv2.imread(str(dataset.mask_path(i)), cv2.IMREAD_UNCHANGED)

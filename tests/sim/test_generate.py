@@ -15,7 +15,7 @@ import pyarrow.parquet as pq
 import pytest
 
 from vistac.cli import main
-from vistac.dataset import FORMAT_VERSION, open_dataset
+from vistac.dataset import FORMAT_VERSION, open_tables
 from vistac.dataset.schema import (
     FAILED_OBJECTS_TYPE,
     REDRAWS_TYPE,
@@ -42,7 +42,7 @@ def _gen(out, *extra):
 
 def test_redraw_columns_are_native_and_add_up(small_dataset):
     """The nested bookkeeping columns read back as counts that sum to the manifest's."""
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     schema = pq.read_schema(small_dataset / "configs.parquet")
     assert schema.field("redraw_reasons").type == REDRAWS_TYPE
     assert schema.field("failed_objects").type == FAILED_OBJECTS_TYPE
@@ -61,7 +61,7 @@ def test_redraw_columns_are_native_and_add_up(small_dataset):
 
 
 def test_dataset_matches_contract(small_dataset):
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     manifest, configs, presses = t.manifest, t.configs, t.presses
     assert manifest["complete"] and manifest["format_version"] == FORMAT_VERSION
     assert manifest["config"]["effects"]["noise"] == 0.05 and manifest["seed"] == 1
@@ -172,7 +172,7 @@ def test_kill_9_then_resume_equals_uninterrupted(tmp_path):
     proc.wait()
     assert not (out / "manifest.json").exists()
     with pytest.raises(UserError, match="interrupted run"):
-        open_dataset(out)
+        open_tables(out)
     assert _gen(out, *args, "--resume") == 0
     for name in ("presses.parquet", "configs.parquet"):
         assert (out / name).read_bytes() == (tmp_path / "ref" / name).read_bytes()
@@ -215,7 +215,7 @@ def test_split_by_object_keeps_objects_whole(tmp_path):
     out = tmp_path / "d"
     assert _gen(out, "--n", "30", "--repeats", "1", "--n-objects", "10", "--split-by", "object",
                 "--workers", "1") == 0
-    configs = open_dataset(out).configs
+    configs = open_tables(out).configs
     per_object = configs.groupby("object_id")["split"].nunique()
     assert (per_object == 1).all()
     assert set(configs["split"]) == {"train", "val", "test"}
@@ -224,7 +224,7 @@ def test_split_by_object_keeps_objects_whole(tmp_path):
 def test_frictionless_angles_are_small(tmp_path):
     out = tmp_path / "d"
     assert _gen(out, "--n", "24", "--repeats", "1", "--friction", "0", "--workers", "1") == 0
-    configs = open_dataset(out).configs
+    configs = open_tables(out).configs
     for f in FINGERS:
         force = configs[[f"force_clean_{f}_{c}" for c in "xyz"]].to_numpy()
         normal = configs[[f"normal_{f}_{c}" for c in "xyz"]].to_numpy()
@@ -233,7 +233,7 @@ def test_frictionless_angles_are_small(tmp_path):
 
 
 def test_pixel_mapping_columns_agree_with_manifest(small_dataset):
-    t = open_dataset(small_dataset)
+    t = open_tables(small_dataset)
     manifest, configs = t.manifest, t.configs
     assert np.allclose(configs["px_per_m"], manifest["render"]["px_per_m"])
     assert pd.api.types.is_integer_dtype(configs["config_id"])

@@ -27,7 +27,7 @@ from vistac.errors import UserError
 
 # ---------------------------------------------------------------------------- the dataset
 def test_ingest_synthetic_recordings(folders, tmp_path):
-    from vistac.dataset import open_dataset
+    from vistac.dataset import open_tables
 
     rec, img = folders
     out = tmp_path / "ds"
@@ -35,7 +35,7 @@ def test_ingest_synthetic_recordings(folders, tmp_path):
     assert man["complete"] and man["counts"]["configs"] == 3
     assert man["counts"]["presses"] == sum(map(len, PLATEAUS.values()))
     assert man["counts"]["rejected"] == 0
-    tables = open_dataset(out)
+    tables = open_tables(out)
     cfg, prs = tables.configs, tables.presses
     assert cfg["config_id"].tolist() == [3, 7, 12]
     assert cfg["image"].tolist() == ["000003.png", "000007.png", "000012.png"]

@@ -9,7 +9,7 @@ neither MuJoCo nor torch:
 - `vistac.dataset.schema`: file names, splits, the finger list, column names, `unit_labels`;
 - `vistac.dataset.files`: atomic files, deterministic Parquet tables, the manifest's parts;
 - `vistac.dataset.splits`: `SplitCfg` and `assign_splits`;
-- `vistac.dataset.reader`: `read_manifest`, `open_dataset` -> `DatasetTables` (with the dataset
+- `vistac.dataset.reader`: `read_manifest`, `open_tables` -> `DatasetTables` (with the dataset
   fingerprint);
 - `vistac.dataset.recordings`: the RH8D/FTS-3 recording CSV layout (written by the simulator,
   read by `ingest`);
@@ -44,7 +44,7 @@ __all__ = [
     "assign_splits",
     "atomic_write_bytes",
     "atomic_write_json",
-    "open_dataset",
+    "open_tables",
     "press_row",
     "press_rows",
     "read_manifest",
@@ -53,7 +53,7 @@ __all__ = [
     "write_table",
 ]
 
-_READER = ("DatasetTables", "open_dataset", "read_manifest")
+_READER = ("DatasetTables", "open_tables", "read_manifest")
 
 
 def __getattr__(name: str):

@@ -1,6 +1,6 @@
 """Reading a dataset directory: the manifest, both tables and the cones, checked.
 
-`open_dataset` is the one reader of the format (docs/dataset-format.md) for every consumer: the
+`open_tables` is the one reader of the format (docs/dataset-format.md) for every consumer: the
 learner, `evaluate`, benchmarks and tests. It refuses an unfinished dataset, names the file, row and
 reason of any malformed content, and sorts configurations by `config_id`.
 """
@@ -241,7 +241,7 @@ def _check_image_names(configs: pd.DataFrame, path: Path) -> None:
                         "than one configuration")
 
 
-def open_dataset(root: str | Path, require_complete: bool = True) -> DatasetTables:
+def open_tables(root: str | Path, require_complete: bool = True) -> DatasetTables:
     """Read and check a dataset directory.
 
     Args:

@@ -1,3 +1,3 @@
 """Data for learning: the study's image variants (`variants`), computed once per dataset and
 cached (`cache`), and the (configuration, rotation) pairs the trainer and evaluator iterate
-(`pairs`). Reading a dataset is `vistac.dataset.open_dataset`."""
+(`pairs`). Reading a dataset is `vistac.dataset.open_tables`."""

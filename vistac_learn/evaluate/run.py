@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 import torch
 
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac.dataset.files import atomic_write_bytes, broken_link
 from vistac.errors import UserError, brief
 from vistac.folder_kinds import EVALUATION, mark
@@ -157,7 +157,7 @@ def run_dataset(meta: dict, data: str | Path | None, cross_dataset: bool):
     `cross_dataset` (e.g. a sim-trained model on real recordings).
     """
     saved = meta["dataset"]
-    tables = open_dataset(data if data is not None else saved["path"])
+    tables = open_tables(data if data is not None else saved["path"])
     if tables.fingerprint() != saved["fingerprint"]:
         if data is None:
             raise UserError(f"{saved['path']}: the run's dataset has changed since training "
@@ -279,7 +279,7 @@ def evaluate_baseline(cfg: EvaluateCfg, out: str | Path | None = None, *,
     tta = cfg.averaged()
     out = Path(out) if out is not None else cfg.out_dir
     bcfg = settings or BASELINES[baseline][0]()
-    tables = open_dataset(data)
+    tables = open_tables(data)
     fingers = fingers_of(cfg.finger)
     rows = tables.rows(split)
     coverage = tip_coverage(tables, fingertip_table(tables, bcfg.locator, progress=progress),

@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from vistac.config import Config, param
-from vistac.dataset import atomic_write_json, open_dataset, press_row, unit_labels, write_table
+from vistac.dataset import atomic_write_json, open_tables, press_row, unit_labels, write_table
 from vistac.dataset.schema import (
     CONFIGS,
     FINGERS,
@@ -134,7 +134,7 @@ def prepare_data(cfg: LabelNoiseCfg) -> dict[tuple[float, int], float]:
         UserError: an unreadable dataset.
     """
     source = Path(cfg.data)
-    tables = open_dataset(source)
+    tables = open_tables(source)
     data = Path(cfg.out) / "data"
     clean_presses = tables.presses[tables.presses["repeat"] == tables.presses["repeat"].min()]
     derive_dataset(source, data / "clean", noisy_presses(tables.configs, clean_presses, 0.0, 0),
@@ -150,7 +150,7 @@ def prepare_data(cfg: LabelNoiseCfg) -> dict[tuple[float, int], float]:
             derive_dataset(source, folder, presses, {
                 "source": str(source), "level": level, "seed": s,
                 "model": "vistac.noise.relative_force_noise", "stream": STREAM})
-            angles[(level, s)] = _label_angle(open_dataset(folder).cones, clean, test)
+            angles[(level, s)] = _label_angle(open_tables(folder).cones, clean, test)
     return angles
 
 
@@ -286,7 +286,7 @@ def check_inputs(cfg: LabelNoiseCfg) -> None:
     """
     source = Path(cfg.data)
     try:
-        tables = open_dataset(source)
+        tables = open_tables(source)
     except UserError as exc:
         raise UserError(f"--data {exc}") from None
     cols = [c for f in FINGERS for c in clean_force_columns(f)]

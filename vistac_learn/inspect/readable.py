@@ -1,7 +1,7 @@
 """A dataset read as far as it is readable: the checked tables, or what is left of a damaged or
 unfinished folder, with one note per thing that could not be read.
 
-`vistac inspect` shows whatever it can: a folder that `open_dataset` refuses (no manifest, an
+`vistac inspect` shows whatever it can: a folder that `open_tables` refuses (no manifest, an
 interrupted run, a truncated table, a label that is not a unit vector, missing images) is read
 piece by piece, and each refusal becomes a one-line note in the summary and the report.
 """
@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from vistac.dataset import FINGERS, open_dataset
+from vistac.dataset import FINGERS, open_tables
 from vistac.dataset.reader import DatasetTables
 from vistac.dataset.schema import CONFIGS, IMAGES, MANIFEST, PARTIAL, PRESSES, label_columns
 from vistac.errors import UserError
@@ -52,7 +52,7 @@ def read_readable(root: str | Path) -> Readable:
     if not root.is_dir():
         raise UserError(f"{root}: not a folder")
     try:
-        tables = open_dataset(root)
+        tables = open_tables(root)
         notes: list[str] = []
     except UserError as exc:
         tables, notes = _salvage(root, str(exc))
@@ -66,7 +66,7 @@ def read_readable(root: str | Path) -> Readable:
 
 
 def _salvage(root: Path, refusal: str) -> tuple[DatasetTables, list[str]]:
-    """The readable parts of a folder `open_dataset` refused (its reason is the first note)."""
+    """The readable parts of a folder `open_tables` refused (its reason is the first note)."""
     notes = [f"not a complete, valid dataset: {refusal}"]
     manifest: dict = {}
     try:

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac.dataset.frames import sensor_to_image
 from vistac.errors import UserError
 from vistac_learn.data.variants import read_rgb
@@ -66,7 +66,7 @@ def inspect_run(run: str | Path, out: Path, *, worst: int, columns: int, size: i
         raise UserError(f"{ev}: unreadable evaluation ({' '.join(str(exc).split())[:120]}); "
                         f"run `vistac evaluate --run {run}` again") from None
     fingers = list(metrics.get("fingers") or ["index"])
-    tables = open_dataset(metrics.get("data") or "")
+    tables = open_tables(metrics.get("data") or "")
     rows_of = {int(c): r for r, c in enumerate(tables.configs["config_id"])}
     top = worst_configurations(pred, fingers, worst)
     simulated = has_simulator_tips(tables)

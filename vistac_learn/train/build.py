@@ -149,11 +149,11 @@ def check_data(cfg: TrainCfg, progress: bool = False) -> list[str]:
     Raises:
         UserError: a damaged dataset, a split above ``cfg.max_missing_pct``.
     """
-    from vistac.dataset import open_dataset
+    from vistac.dataset import open_tables
     from vistac_learn.data.fingertip_table import fingertip_table
 
     if not build_view(cfg).needs_tips:
         return []
-    tables = open_dataset(cfg.data)
+    tables = open_tables(cfg.data)
     tips = fingertip_table(tables, cache_dir=cfg.cache_dir, progress=progress)
     return [f"{cfg.data}: {c.line()}" for c in run_coverage(cfg, tables, tips)]

@@ -45,7 +45,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from vistac.dataset import open_dataset
+from vistac.dataset import open_tables
 from vistac.dataset.files import remove_stale_temporaries
 from vistac.errors import UserError
 from vistac.folder_lock import hold
@@ -243,7 +243,7 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
     if device.type == "cuda":  # CPU kernels are deterministic already
         torch.backends.cudnn.deterministic = True
         torch.backends.cudnn.benchmark = False
-    tables = open_dataset(cfg.data)
+    tables = open_tables(cfg.data)
     fingerprint = tables.fingerprint()
     if started:
         folder.check_resume(cfg, fingerprint)

@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from vistac.config import Config, param
-from vistac.dataset import FINGERS, DatasetTables, open_dataset
+from vistac.dataset import FINGERS, DatasetTables, open_tables
 from vistac_learn.data.perturb import AXES, Scene, perturb_axes, random_axes, segment
 from vistac_learn.data.segmenter import CLASSES, DEFAULT_WIDTHS, TinyUNet, segment_image
 from vistac_learn.data.variants import read_rgb
@@ -63,7 +63,7 @@ def segmentation_samples(clean: Path, photos: list[Path], split: str, copies: in
     others with a random set, drawn from ``[seed, row, k]``); photo renders come as they are.
     """
     imgs, labs = [], []
-    t = open_dataset(clean)
+    t = open_tables(clean)
     colours = {f: t.finger_rgb(f) for f in FINGERS}
     for row in t.rows(split):
         rgb = read_rgb(t.image_path(int(row)))
@@ -80,7 +80,7 @@ def segmentation_samples(clean: Path, photos: list[Path], split: str, copies: in
             labs.append(cv2.warpPerspective(lab, p.homography, (w, h), flags=cv2.INTER_NEAREST,
                                             borderMode=cv2.BORDER_REPLICATE))
     for photo in photos:
-        t = open_dataset(photo)
+        t = open_tables(photo)
         for row in t.rows(split):
             rgb = read_rgb(t.image_path(int(row)))
             imgs.append(rgb)

@@ -71,7 +71,7 @@ def warm_fingertip_cache(base: TrainCfg, progress: bool = False) -> None:
     """Locate the fingertips of ``base.data`` into its cache, if the trials' view needs them."""
     if not build_view(base).needs_tips:
         return
-    from vistac.dataset import open_dataset
+    from vistac.dataset import open_tables
     from vistac_learn.data.fingertip_table import fingertip_table
 
-    fingertip_table(open_dataset(base.data), cache_dir=base.cache_dir, progress=progress)
+    fingertip_table(open_tables(base.data), cache_dir=base.cache_dir, progress=progress)

@@ -83,10 +83,10 @@ def _run_ingest(args: argparse.Namespace) -> int:
     print(f"wrote {out}: " + json.dumps({"counts": manifest["counts"],
                                               "rejected": manifest["rejected"]["by_reason"]}))
     if command.report is not None:
-        from vistac.dataset import open_dataset
+        from vistac.dataset import open_tables
         from vistac.dataset.ingest.pages import write_recordings_report
 
-        pages, notes = write_recordings_report(open_dataset(out), command.report)
+        pages, notes = write_recordings_report(open_tables(out), command.report)
         for note in notes:
             print(f"note: {note}")
         rejected = sum(1 for p in pages if p.rejected or p.error)
