@@ -62,7 +62,7 @@ def _mean_predictor_loss(data, fingers=("index", "thumb"), split="train") -> flo
     return float(((y - y.mean(0)) ** 2).mean())
 
 
-@pytest.mark.parametrize("protocol,model,epochs", [("default", "pinchnet", 20),
+@pytest.mark.parametrize("protocol,model,epochs", [("default", "pinchnet", 12),
                                                    ("study", "schoeconv100-v3-fc160", 30)])
 def test_sanity_a_model_fits_64_samples(generated, tmp_path, protocol, model, epochs):
     """Training loss on 64 training configurations falls to a small fraction of what the best
