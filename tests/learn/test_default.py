@@ -87,7 +87,7 @@ NO_APPEARANCE = dict(appearance=0.0)
 
 def test_default_training_beats_a_mean_predictor(generated, tmp_path):
     run = train_run_folder(protocol_cfg("default", str(generated), str(tmp_path / "run"),
-                                        epochs=25, batch_size=16, device="cpu", **NO_APPEARANCE),
+                                        epochs=15, batch_size=16, device="cpu", **NO_APPEARANCE),
                            progress=False)
     res = evaluate_run(EvaluateCfg(run=str(run), no_plots=True))
     t = open_tables(generated)
