@@ -44,7 +44,7 @@ from vistac.dataset import SplitCfg, open_tables  # noqa: E402
 from vistac.provenance import provenance  # noqa: E402
 from vistac_learn.metrics.scoring import STUDY_COLUMNS, score  # noqa: E402
 from vistac_learn.models import model_info  # noqa: E402
-from vistac_sim.generate.config import GenerateCfg  # noqa: E402
+from vistac_sim.generate.config import GenerateCfg, GraspCfg  # noqa: E402
 from vistac_sim.objects.config import ObjectsCfg  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
@@ -66,11 +66,19 @@ RESAMPLED = ("correct_y_pct", "in_cone_pct")  # the columns shown with a 34-conf
 
 
 def dataset(args: argparse.Namespace) -> Path:
-    """The twin's dataset (generated once into <work>/data)."""
+    """The twin's dataset (generated once into <work>/data; with grasp spreads other than the
+    simulator's defaults, into <work>/data-a<approach>c<closing>)."""
+    default = GraspCfg()
+    grasp = GraspCfg(
+        approach_spread_deg=getattr(args, "approach_spread", default.approach_spread_deg),
+        closing_spread_deg=getattr(args, "closing_spread", default.closing_spread_deg))
     cfg = GenerateCfg.from_file(args.scene, n=args.n, seed=args.data_seed,
                                 objects=ObjectsCfg(n_objects=args.n_objects),
-                                split=SplitCfg(by="object", fractions=tuple(args.split)))
-    return ensure_dataset(Path(args.work) / "data", cfg)
+                                split=SplitCfg(by="object", fractions=tuple(args.split)),
+                                grasp=grasp)
+    folder = "data" if grasp == default else \
+        f"data-a{grasp.approach_spread_deg:g}c{grasp.closing_spread_deg:g}"
+    return ensure_dataset(Path(args.work) / folder, cfg)
 
 
 def train_fraction(tables, n_train: int) -> float:
@@ -293,6 +301,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--split", type=float, nargs=3, default=[0.42, 0.06, 0.52],
                    help="train / val / test fractions of the objects")
     p.add_argument("--data-seed", type=int, default=0, help="the dataset's seed")
+    p.add_argument("--approach-spread", type=float, default=GraspCfg().approach_spread_deg,
+                   help="grasp: max degrees of a finger's axis off its target's normal "
+                   "(benchmarks/study_spread.py measures what it changes)")
+    p.add_argument("--closing-spread", type=float, default=GraspCfg().closing_spread_deg,
+                   help="grasp: max degrees of the closing axis off the index target's normal")
     p.add_argument("--n-train", type=int, default=162, help="training configurations used")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="training seeds")
     p.add_argument("--models", nargs="+", default=["schoeconv100-v3-fc160", "smallconv"])

@@ -77,7 +77,8 @@ def fmt(key: str, v: float | None) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Command-line entry."""
-    p = twin_parser(__doc__, "study_spread", dataset=(1300, 64, (0.42, 0.06, 0.52)))
+    p = twin_parser(__doc__, "study_spread", dataset=(1300, 64, (0.42, 0.06, 0.52)),
+                    grasp=False)  # --spreads sets them
     p.add_argument("--spreads", nargs="+", default=["20,20", "10,10", "5,5", "3,3", "20,5",
                                                     "5,20"],
                    help="APPROACH,CLOSING grasp spreads in degrees (the first is the twin's)")

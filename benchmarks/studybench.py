@@ -13,16 +13,19 @@ from pathlib import Path
 from study_replay import RESULTS, SCENE
 
 from vistac_sim.effects.presets import load_scene
+from vistac_sim.generate.config import GraspCfg
 
 REPO = Path(__file__).resolve().parent.parent
 V3 = "schoeconv100-v3-fc160"
 
 
-def twin_parser(doc: str, name: str, dataset: tuple | None = None) -> argparse.ArgumentParser:
+def twin_parser(doc: str, name: str, dataset: tuple | None = None,
+                grasp: bool = True) -> argparse.ArgumentParser:
     """A script's parser (its description the first paragraph of `doc`) with ``--work``
     (default ``runs/<name>``), ``--results``, ``--name``, ``--scene`` and, with `dataset` =
     (n, n_objects, split fractions), the options of the twin's dataset that
-    `study_replay.dataset` reads: ``--n``, ``--n-objects``, ``--split``, ``--data-seed``."""
+    `study_replay.dataset` reads: ``--n``, ``--n-objects``, ``--split``, ``--data-seed``,
+    with `grasp`, ``--approach-spread``, ``--closing-spread``."""
     p = argparse.ArgumentParser(description=doc.split("\n\n")[0],
                                 formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     options = [("--work", str(REPO / "runs" / name), str, None,
@@ -36,6 +39,14 @@ def twin_parser(doc: str, name: str, dataset: tuple | None = None) -> argparse.A
                     ("--n-objects", n_objects, int, None, "procedural objects"),
                     ("--split", list(split), float, 3, "train / val / test object fractions"),
                     ("--data-seed", 0, int, None, "the dataset's seed")]
+        if grasp:
+            g = GraspCfg()
+            options += [("--approach-spread", g.approach_spread_deg, float, None,
+                         "grasp: max degrees of a finger's axis off its target's normal "
+                         "(see study_spread.py)"),
+                        ("--closing-spread", g.closing_spread_deg, float, None,
+                         "grasp: max degrees of the closing axis off the index target's "
+                         "normal")]
     for flag, default, kind, nargs, text in options:
         p.add_argument(flag, default=default, type=kind, nargs=nargs, help=text)
     return p
