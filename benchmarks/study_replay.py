@@ -81,6 +81,17 @@ def dataset(args: argparse.Namespace) -> Path:
     return ensure_dataset(Path(args.work) / folder, cfg)
 
 
+def add_grasp_options(p: argparse.ArgumentParser) -> None:
+    """``--approach-spread`` and ``--closing-spread``, the grasp spreads `dataset` reads
+    (defaults: the simulator's, `GraspCfg`)."""
+    g = GraspCfg()
+    p.add_argument("--approach-spread", type=float, default=g.approach_spread_deg,
+                   help="grasp: max degrees of a finger's axis off its target's normal "
+                   "(benchmarks/study_spread.py measures what it changes)")
+    p.add_argument("--closing-spread", type=float, default=g.closing_spread_deg,
+                   help="grasp: max degrees of the closing axis off the index target's normal")
+
+
 def train_fraction(tables, n_train: int) -> float:
     """The `--train-fraction` that keeps `n_train` of the training configurations (the
     trainer keeps ceil(fraction x n))."""
@@ -301,11 +312,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--split", type=float, nargs=3, default=[0.42, 0.06, 0.52],
                    help="train / val / test fractions of the objects")
     p.add_argument("--data-seed", type=int, default=0, help="the dataset's seed")
-    p.add_argument("--approach-spread", type=float, default=GraspCfg().approach_spread_deg,
-                   help="grasp: max degrees of a finger's axis off its target's normal "
-                   "(benchmarks/study_spread.py measures what it changes)")
-    p.add_argument("--closing-spread", type=float, default=GraspCfg().closing_spread_deg,
-                   help="grasp: max degrees of the closing axis off the index target's normal")
+    add_grasp_options(p)
     p.add_argument("--n-train", type=int, default=162, help="training configurations used")
     p.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="training seeds")
     p.add_argument("--models", nargs="+", default=["schoeconv100-v3-fc160", "smallconv"])

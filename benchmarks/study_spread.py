@@ -28,13 +28,11 @@ from pathlib import Path
 
 import numpy as np
 import study_replay as replay
-from learnbench import ensure_dataset
 from studybench import twin_parser
 
-from vistac.dataset import SplitCfg, open_tables
+from vistac.dataset import open_tables
 from vistac.provenance import provenance
 from vistac_learn.metrics.scoring import score
-from vistac_sim.generate.config import GenerateCfg, GraspCfg, ObjectsCfg
 
 KEYS = ("correct_y_pct", "in_cone_pct", "error_median_pct", "mse_mean",
         "angle_to_mean_median_deg")
@@ -44,12 +42,9 @@ STUDY = {name: dict(zip(replay.STUDY_KEYS, replay.STUDY_ROWS[name], strict=True)
 
 
 def twin(args: argparse.Namespace, approach: float, closing: float) -> Path:
-    """The twin's dataset with these grasp spreads (generated once into --work)."""
-    cfg = GenerateCfg.from_file(
-        args.scene, n=args.n, seed=args.data_seed, objects=ObjectsCfg(n_objects=args.n_objects),
-        split=SplitCfg(by="object", fractions=tuple(args.split)),
-        grasp=GraspCfg(approach_spread_deg=approach, closing_spread_deg=closing))
-    return ensure_dataset(Path(args.work) / f"a{approach:g}c{closing:g}", cfg)
+    """The twin's dataset with these grasp spreads (`study_replay.dataset`, kept in --work)."""
+    return replay.dataset(argparse.Namespace(**vars(args), approach_spread=approach,
+                                             closing_spread=closing))
 
 
 def measure(data: Path) -> dict:

@@ -10,10 +10,9 @@ import json
 import time
 from pathlib import Path
 
-from study_replay import RESULTS, SCENE
+from study_replay import RESULTS, SCENE, add_grasp_options
 
 from vistac_sim.effects.presets import load_scene
-from vistac_sim.generate.config import GraspCfg
 
 REPO = Path(__file__).resolve().parent.parent
 V3 = "schoeconv100-v3-fc160"
@@ -39,16 +38,10 @@ def twin_parser(doc: str, name: str, dataset: tuple | None = None,
                     ("--n-objects", n_objects, int, None, "procedural objects"),
                     ("--split", list(split), float, 3, "train / val / test object fractions"),
                     ("--data-seed", 0, int, None, "the dataset's seed")]
-        if grasp:
-            g = GraspCfg()
-            options += [("--approach-spread", g.approach_spread_deg, float, None,
-                         "grasp: max degrees of a finger's axis off its target's normal "
-                         "(see study_spread.py)"),
-                        ("--closing-spread", g.closing_spread_deg, float, None,
-                         "grasp: max degrees of the closing axis off the index target's "
-                         "normal")]
     for flag, default, kind, nargs, text in options:
         p.add_argument(flag, default=default, type=kind, nargs=nargs, help=text)
+    if dataset is not None and grasp:
+        add_grasp_options(p)
     return p
 
 
