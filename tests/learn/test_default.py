@@ -1,8 +1,8 @@
 """The default learning recipe on real generated data: it fits, it generalises, it is safe.
 
-- The standard sanity check: a model trained on ~64 samples drives its training loss close to
-  zero (for the default model, and for a study net under the study's own protocol; the latter
-  failed with PyTorch's default initialisation, see `models.study.init_signal_preserving`).
+- The standard sanity check: a model trained on a few dozen samples drives its training loss
+  close to zero (the default model on ~64; a study net, under the study's own protocol, on 18:
+  it failed with PyTorch's default initialisation, see `models.study.init_signal_preserving`).
 - End to end: a few hundred generated configurations, default settings: the model beats a mean
   predictor on held-out configurations (an assertion on accuracy, not on time).
 - `--init` loads weights; a diverging run stops with a message; a run killed before its first
@@ -25,7 +25,7 @@ from vistac_learn.evaluate.config import EvaluateCfg
 from vistac_learn.evaluate.run import evaluate_run
 from vistac_learn.metrics import cone_metrics
 from vistac_learn.models.tipnet import apply_model
-from vistac_learn.train.build import build_model, build_samples, input_size
+from vistac_learn.train.build import build_model, build_samples, input_size, subset_rows
 from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.loop import masked_mse, train_run_folder
 
@@ -50,25 +50,35 @@ def _train_loss(run, split: str = "train") -> float:
     model.eval()
     tips = fingertip_table(t, cache_dir=cfg.cache_dir)
     ds = build_samples(cfg, t, split, input_size(cfg, model), tips)
-    b = ds.batch(np.arange(len(ds)))
+    rows = t.rows(split)
+    if split == cfg.train_split:  # only the rows it trained on (its `train_fraction`)
+        rows = np.searchsorted(rows, subset_rows(rows, cfg.train_fraction, cfg.seed))
+    else:
+        rows = np.arange(len(rows))
+    b = ds.batch(rows)
     with torch.no_grad():
         return float(masked_mse(apply_model(model, b, "cpu"), b["target"], b["found"]))
 
 
-def _mean_predictor_loss(data, fingers=("index", "thumb"), split="train") -> float:
+def _mean_predictor_loss(data, fingers=("index", "thumb"), split="train",
+                         fraction: float = 1.0, seed: int = 0) -> float:
     t = open_tables(data)
-    rows = t.rows(split)
+    rows = subset_rows(t.rows(split), fraction, seed)
     y = np.concatenate([t.mean_label(f)[rows] for f in fingers], axis=1)
     return float(((y - y.mean(0)) ** 2).mean())
 
 
-@pytest.mark.parametrize("protocol,model,epochs", [("default", "pinchnet", 12),
-                                                   ("study", "schoeconv100-v3-fc160", 30)])
-def test_sanity_a_model_fits_64_samples(generated, tmp_path, protocol, model, epochs):
-    """Training loss on 64 training configurations falls to a small fraction of what the best
-    constant prediction leaves (the test fails if data, labels and model do not line up)."""
+@pytest.mark.parametrize("protocol,model,epochs,fraction",
+                         [("default", "pinchnet", 12, 1.0),
+                          ("study", "schoeconv100-v3-fc160", 30, 0.35)])
+def test_sanity_a_model_fits_its_training_samples(generated, tmp_path, protocol, model, epochs,
+                                                  fraction):
+    """Training loss on the configurations it trained on (the ~64 of the validation split; the
+    study net, 5x the cost of a sample, a seeded third of them) falls to a small fraction of
+    what the best constant prediction leaves (the test fails if data, labels and model do not
+    line up)."""
     kw = dict(model=model, epochs=epochs, train_split="val", val_split="test", mirror=False,
-              jitter=0.0, appearance=0.0, select="loss", device="cpu",
+              jitter=0.0, appearance=0.0, select="loss", device="cpu", train_fraction=fraction,
               cache_dir=str(tmp_path / "cache"))
     kw |= dict(batch_size=8) if protocol == "default" else dict(rotations="none")
     cfg = protocol_cfg(protocol, str(generated), str(tmp_path / "run"), **kw)
@@ -76,7 +86,8 @@ def test_sanity_a_model_fits_64_samples(generated, tmp_path, protocol, model, ep
     assert 50 <= n <= 90, n  # the ~64 samples of the standard check
     run = train_run_folder(cfg, progress=False)
     fingers = ("index", "thumb") if protocol == "default" else ("index",)
-    ratio = _train_loss(run, "val") / _mean_predictor_loss(generated, fingers, "val")
+    ratio = _train_loss(run, "val") / _mean_predictor_loss(generated, fingers, "val", fraction,
+                                                           cfg.seed)
     assert ratio < 0.05, ratio
 
 
