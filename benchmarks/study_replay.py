@@ -27,6 +27,7 @@ Usage:
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -44,7 +45,7 @@ from vistac.dataset import SplitCfg, open_tables  # noqa: E402
 from vistac.provenance import provenance  # noqa: E402
 from vistac_learn.metrics.scoring import STUDY_COLUMNS, score  # noqa: E402
 from vistac_learn.models import model_info  # noqa: E402
-from vistac_sim.generate.config import GenerateCfg, GraspCfg  # noqa: E402
+from vistac_sim.generate.config import GenerateCfg  # noqa: E402
 from vistac_sim.objects.config import ObjectsCfg  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
@@ -66,30 +67,33 @@ RESAMPLED = ("correct_y_pct", "in_cone_pct")  # the columns shown with a 34-conf
 
 
 def dataset(args: argparse.Namespace) -> Path:
-    """The twin's dataset (generated once into <work>/data; with grasp spreads other than the
-    simulator's defaults, into <work>/data-a<approach>c<closing>)."""
-    default = GraspCfg()
-    grasp = GraspCfg(
-        approach_spread_deg=getattr(args, "approach_spread", default.approach_spread_deg),
-        closing_spread_deg=getattr(args, "closing_spread", default.closing_spread_deg))
+    """The twin's dataset, generated once into <work>/data with the scene file's grasp spreads;
+    with ``--approach-spread``/``--closing-spread`` given, into <work>/data-a<A>c<C>."""
     cfg = GenerateCfg.from_file(args.scene, n=args.n, seed=args.data_seed,
                                 objects=ObjectsCfg(n_objects=args.n_objects),
-                                split=SplitCfg(by="object", fractions=tuple(args.split)),
-                                grasp=grasp)
-    folder = "data" if grasp == default else \
-        f"data-a{grasp.approach_spread_deg:g}c{grasp.closing_spread_deg:g}"
-    return ensure_dataset(Path(args.work) / folder, cfg)
+                                split=SplitCfg(by="object", fractions=tuple(args.split)))
+    approach = getattr(args, "approach_spread", None)
+    closing = getattr(args, "closing_spread", None)
+    if approach is None and closing is None:
+        return ensure_dataset(Path(args.work) / "data", cfg)
+    grasp = dataclasses.replace(
+        cfg.grasp, approach_spread_deg=cfg.grasp.approach_spread_deg if approach is None
+        else approach, closing_spread_deg=cfg.grasp.closing_spread_deg if closing is None
+        else closing)
+    folder = f"data-a{grasp.approach_spread_deg:g}c{grasp.closing_spread_deg:g}"
+    return ensure_dataset(Path(args.work) / folder, dataclasses.replace(cfg, grasp=grasp))
 
 
 def add_grasp_options(p: argparse.ArgumentParser) -> None:
     """``--approach-spread`` and ``--closing-spread``, the grasp spreads `dataset` reads
-    (defaults: the simulator's, `GraspCfg`)."""
-    g = GraspCfg()
-    p.add_argument("--approach-spread", type=float, default=g.approach_spread_deg,
+    (default: the scene file's)."""
+    p.add_argument("--approach-spread", type=float, default=None,
                    help="grasp: max degrees of a finger's axis off its target's normal "
-                   "(benchmarks/study_spread.py measures what it changes)")
-    p.add_argument("--closing-spread", type=float, default=g.closing_spread_deg,
-                   help="grasp: max degrees of the closing axis off the index target's normal")
+                   "(default: the scene file's; benchmarks/study_spread.py measures what it "
+                   "changes)")
+    p.add_argument("--closing-spread", type=float, default=None,
+                   help="grasp: max degrees of the closing axis off the index target's normal "
+                   "(default: the scene file's)")
 
 
 def train_fraction(tables, n_train: int) -> float:

@@ -33,6 +33,7 @@ from studybench import twin_parser
 from vistac.dataset import open_tables
 from vistac.provenance import provenance
 from vistac_learn.metrics.scoring import score
+from vistac_sim.generate.config import GenerateCfg
 
 KEYS = ("correct_y_pct", "in_cone_pct", "error_median_pct", "mse_mean",
         "angle_to_mean_median_deg")
@@ -76,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
                     grasp=False)  # --spreads sets them
     p.add_argument("--spreads", nargs="+", default=["20,20", "10,10", "5,5", "3,3", "20,5",
                                                     "5,20"],
-                   help="APPROACH,CLOSING grasp spreads in degrees (the first is the twin's)")
+                   help="APPROACH,CLOSING grasp spreads in degrees")
     args = p.parse_args(argv)
     rows, datasets = [], []
     for text in args.spreads:
@@ -102,11 +103,13 @@ def main(argv: list[str] | None = None) -> int:
                         ("schoeconv100-v3-fc160", "SchoeConv100-V3(FC160), the study (real)")):
         lines.append("| " + " | ".join([label, "", *(fmt(k, STUDY[name].get(k)) for k in KEYS),
                                         "", ""]) + " |")
+    scene_grasp = GenerateCfg.from_file(args.scene).grasp
     md = "\n".join(lines) + (
         f"\n\nIndex finger, the test split ({rows[0]['n_test']} configurations of held-out "
         f"objects) of twins of {args.n} configurations of {args.n_objects} objects (seed "
         f"{args.data_seed}, scene `{Path(args.scene).name}`), one per pair of grasp spreads "
-        "(`GraspCfg.approach_spread_deg` / `closing_spread_deg`; the twin's are 20 / 20). "
+        f"(`GraspCfg.approach_spread_deg` / `closing_spread_deg`; the scene file's are "
+        f"{scene_grasp.approach_spread_deg:g} / {scene_grasp.closing_spread_deg:g}). "
         "Constant: every test configuration predicted as the mean training label, i.e. a model "
         "that learnt nothing. Label angle: atan2(y, -z) of each configuration's mean index "
         "label. Cone means' MSE: the configurations' own mean labels as predictions, the MSE "

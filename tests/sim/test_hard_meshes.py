@@ -257,6 +257,24 @@ def test_scene_files_set_physics_and_the_cli_wins(tmp_path):
     assert _cli_cfg().physics.friction == 0.8  # the default without a scene file
 
 
+def test_scene_files_set_grasp_spreads_and_the_cli_wins(tmp_path):
+    """The study twin's scene draws grasps within 10 degrees; `--approach-spread` wins."""
+    from pathlib import Path
+
+    study = Path(__file__).parents[2] / "sim_assets" / "scenes" / "study.yaml"
+    cfg = _cli_cfg("--scene", str(study))
+    assert (cfg.grasp.approach_spread_deg, cfg.grasp.closing_spread_deg) == (10.0, 10.0)
+    assert isinstance(cfg.grasp.approach_spread_deg, float)  # as --approach-spread 10 writes it
+    assert cfg == GenerateCfg.from_file(study)  # the Python API reads the same file the same way
+    cfg = _cli_cfg("--scene", str(study), "--approach-spread", "15")
+    assert (cfg.grasp.approach_spread_deg, cfg.grasp.closing_spread_deg) == (15.0, 10.0)
+    assert _cli_cfg().grasp.approach_spread_deg == 20.0  # the default without a scene file
+    bad = tmp_path / "s.yaml"
+    bad.write_text("grasp: {closing_spread_deg: 90}\n")
+    with pytest.raises(UserError, match=r"s.yaml: grasp.closing_spread_deg: must be < 90"):
+        _cli_cfg("--scene", str(bad))
+
+
 @pytest.mark.parametrize("text, key, figure", [
     ("physics: {approach_steps: 1}\n", "physics.approach_steps", "3.9 at 30 ms or less"),
     ("physics: {settle_steps: 1}\n", "physics.settle_steps", "1.8 deg off at 1 step"),

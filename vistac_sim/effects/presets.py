@@ -1,9 +1,10 @@
 """Named effect presets and scene files (`--preset NAME`, `--scene FILE`).
 
 A preset or scene file is a partial config: ``effects`` (fields of `EffectsCfg`),
-``recording`` (fields of `RecordingCfg`) and ``physics`` (fields of `PhysicsCfg`: friction,
+``recording`` (fields of `RecordingCfg`), ``physics`` (fields of `PhysicsCfg`: friction,
 time step, the press's phases, contact softness, the checks' tolerances; a value known to bias
-labels is refused with its measured bias, `vistac_sim.physics.config.label_bias`). An optional
+labels is refused with its measured bias, `vistac_sim.physics.config.label_bias`) and ``grasp``
+(fields of `GraspCfg`: how far approach and closing axes spread off the surface normal). An optional
 effect is switched on by a table of its parameters (merged over the preset's, or the defaults)
 or by ``true``, and off by ``false`` or ``null``. A scene file may name its base ``preset``;
 the `--preset` option wins over it. Example (YAML; TOML works the same with ``[effects.fts3]``
@@ -15,6 +16,7 @@ tables)::
       finger_pull: false
     recording: {hold_s: 1.5}
     physics: {friction: 0.5}
+    grasp: {approach_spread_deg: 10, closing_spread_deg: 10}
 
 Unknown keys and values of the wrong type are errors naming the file and the key.
 """
@@ -30,6 +32,7 @@ from vistac.config import apply
 from vistac.errors import UserError
 from vistac.safe_yaml import load_yaml
 from vistac_sim.effects import EffectsCfg
+from vistac_sim.generate.grasp_config import GraspCfg
 from vistac_sim.physics.config import BiasedPhysicsWarning, PhysicsCfg, label_bias
 from vistac_sim.recording.config import RecordingCfg
 
@@ -82,7 +85,8 @@ SCENE_SUFFIXES = (".yaml", ".yml", ".toml")
 MAX_SCENE_BYTES = 1 << 20
 """A scene file is a few settings: anything larger is a mistake (or an attack), refused unread."""
 # The parts of the generate config a scene file may set, with their config classes.
-SECTIONS = {"effects": EffectsCfg, "recording": RecordingCfg, "physics": PhysicsCfg}
+SECTIONS = {"effects": EffectsCfg, "recording": RecordingCfg, "physics": PhysicsCfg,
+            "grasp": GraspCfg}
 
 
 def resolve(preset: str | None = None, scene: str | Path | None = None,

@@ -30,6 +30,10 @@ SCENE_OPTIONS = ("physics.friction", "render.image_size", "render.masks", "rende
                  "split.fractions", "chunk_size", "objects.strict")
 OPTIONS = RUN_OPTIONS + DRAW_OPTIONS + SCENE_OPTIONS
 COMMAND_OPTIONS = ("out", "preset", "scene", "recordings", "workers", "resume")
+# Options a scene file may set too (field -> argparse dest): given, they win; not given, the
+# scene file's value (else the field's default) stays.
+SCENE_FILE_OPTIONS = {"physics.friction": "friction",
+                      "grasp.approach_spread_deg": "approach_spread"}
 
 
 @dataclass(frozen=True)
@@ -73,7 +77,7 @@ def add_command(sub: argparse._SubParsersAction) -> None:
     add_options(p, GenerateCommandCfg, ("workers",))
     add_options(p, EngineCfg, ENGINE_OPTIONS + WRITES_OPTIONS)
     for action in add_options(p, GenerateCfg, SCENE_OPTIONS):
-        if action.dest == "friction":  # None unless given: a scene file's physics.friction stays
+        if action.dest in SCENE_FILE_OPTIONS.values():  # None unless given: the scene's stays
             action.default = None
     add_options(p, GenerateCommandCfg, ("resume",))
     add_progress_option(p)
@@ -90,8 +94,10 @@ def generate_cfg_from_args(args: argparse.Namespace) -> GenerateCfg:
     base = GenerateCfg.from_preset(cmd.preset, scene=cmd.scene, noise=args.noise,
                                    recordings=cmd.recordings)
     values = option_values(args, GenerateCfg, OPTIONS)
-    if values["physics"]["friction"] is None:  # --friction not given
-        del values["physics"]
+    for path in SCENE_FILE_OPTIONS:
+        section, name = path.split(".")
+        if values[section][name] is None:  # not given
+            del values[section][name]
     cfg = apply(base, values, labels=flag_labels(GenerateCfg, OPTIONS))
     return cfg
 

@@ -18,6 +18,7 @@ from vistac.config import Config, ConfigError, param, to_dict
 from vistac.dataset import SplitCfg
 from vistac_sim.effects import EffectsCfg
 from vistac_sim.effects.presets import resolve_sections
+from vistac_sim.generate.grasp_config import GraspCfg
 from vistac_sim.hand.config import HandCfg
 from vistac_sim.objects.config import ObjectsCfg
 from vistac_sim.physics.config import PhysicsCfg
@@ -25,28 +26,6 @@ from vistac_sim.recording.config import RecordingCfg
 from vistac_sim.render.config import RenderCfg
 
 MIN_TIP_PIXELS = 3  # a fingertip drawn narrower cannot be told from noise by the tip locator
-
-
-@dataclass(frozen=True)
-class GraspCfg(Config):
-    """How contact targets and approach directions are drawn."""
-
-    approach_spread_deg: float = param(
-        20.0, ge=0, lt=90, flag="--approach-spread",
-        help="max degrees of each finger's axis (its sensor's z) off its target's inward "
-        "surface normal")
-    closing_spread_deg: float = param(
-        20.0, ge=0, lt=90,
-        help="max degrees of the hand's closing axis (the push of both fingers) off the index "
-        "target's inward normal; the thumb closes along the same axis, where it meets the object "
-        "(where the friction cone plus cone_tolerance_deg is narrower, both pushes are drawn "
-        "within it: antipodal grasps)")
-    max_push_angle_deg: float = param(
-        50.0, ge=0, lt=90,
-        help="max degrees between the closing axis and the thumb target's surface normal "
-        "(further off, a pad slides away along the surface)")
-    max_redraws: int = param(60, ge=0, le=100_000,
-                             help="per configuration, before the run fails loudly")
 
 
 @dataclass(frozen=True)
@@ -110,6 +89,7 @@ class GenerateCfg(Config):
         if recordings and not recording.write:
             recording = dataclasses.replace(recording, write=True)
         fields.setdefault("physics", sections["physics"])  # a physics= argument wins
+        fields.setdefault("grasp", sections["grasp"])
         return cls(effects=sections["effects"], recording=recording, **fields)
 
     @classmethod
@@ -117,7 +97,7 @@ class GenerateCfg(Config):
                   noise: float | None = None, recordings: bool = False,
                   **fields: Any) -> GenerateCfg:
         """A complete config from a scene file (its ``preset``, ``effects``, ``recording``,
-        ``physics``).
+        ``physics``, ``grasp``).
 
         `preset` and `noise`, when given, win over the file's; see `from_preset`.
         """
