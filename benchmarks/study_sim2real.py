@@ -12,9 +12,9 @@ simulated twin, fine-tuned on a study-sized, photo-like "real" side read back by
   photo`` appearance and the twin's sensor and hand imperfections (the scene file
   `REAL_SCENE`, written into the work folder), written as FTS-3 recordings (``--recordings``)
   plus images, and read back by ``vistac ingest`` split by object (``--objects-csv``): the
-  path a lab's recordings take, but one step: ingest leaves the finger boxes the study's views
-  crop by NaN, so the generated images' boxes are copied in (`fill_boxes`, a stand-in for the
-  study's finger finder; a library gap, see the docstring there).
+  path a lab's recordings take, unchanged. Ingest leaves the finger boxes the study's views
+  crop by NaN; training locates them in the images (`vistac_learn.data.located_boxes`), as
+  the study found them with its finger finder.
 - **experiments** (`vistac experiment sim2real`, fractions 0.1 0.33 1, ``--seeds`` 3):
   ``v3``: ``--protocol study`` (the real runs as the study trained: 20 fixed rotations, 20
   epochs); its sim-only pretraining with one random rotation per sample and epoch
@@ -66,7 +66,6 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
 import trimesh  # noqa: E402
 import yaml  # noqa: E402
 from learnbench import cell_cpu_s, ensure_dataset, save, timed_runner  # noqa: E402
@@ -82,10 +81,8 @@ from study_label_noise import (  # noqa: E402
 )
 
 import vistac  # noqa: E402
-from vistac.dataset import FINGERS, SplitCfg, open_tables  # noqa: E402
-from vistac.dataset.files import write_table  # noqa: E402
+from vistac.dataset import SplitCfg, open_tables  # noqa: E402
 from vistac.dataset.ingest.config import IngestSources  # noqa: E402
-from vistac.dataset.schema import box_columns  # noqa: E402
 from vistac_learn.experiments import sim2real as S  # noqa: E402
 from vistac_learn.experiments.cells import open_experiment, pm, read_rows  # noqa: E402
 from vistac_learn.train.config import TrainCfg  # noqa: E402
@@ -155,8 +152,8 @@ def make_meshes(folder: Path) -> list[Path]:
 
 
 def real_data(work: Path, args: argparse.Namespace) -> Path:
-    """Generate the real side with recordings, ingest its recordings and images, then give the
-    ingested table the finger boxes (`fill_boxes`)."""
+    """Generate the real side with recordings and ingest its recordings and images (the finger
+    boxes stay NaN: training locates them)."""
     out = work / "real"
     gen = work / "real_generated"
     if not (out / "manifest.json").exists():
@@ -175,24 +172,7 @@ def real_data(work: Path, args: argparse.Namespace) -> Path:
         split = SplitCfg(by="object", fractions=tuple(args.real_split))
         vistac.ingest(IngestSources(images=gen / "images", recordings=gen / "recordings",
                                     objects_csv=objects, split=split, seed=args.real_seed), out)
-    fill_boxes(out, gen)
     return out
-
-
-def fill_boxes(real: Path, gen: Path) -> None:
-    """The one step off the lab path: `vistac ingest` leaves the finger boxes (``bbox_*``) NaN,
-    and the study's views crop by them (the study found them with its AlexNet finger finder,
-    95.8 % usable). As a stand-in for that finder, the boxes of the generated images (the
-    fingers as drawn) are copied into the ingested configuration table by ``config_id``
-    (idempotent; an exact finder, so optimistic)."""
-    table = real / "configs.parquet"
-    ingested = pd.read_parquet(table)
-    cols = [c for f in FINGERS for c in box_columns(f)]
-    if np.isfinite(ingested[cols].to_numpy(float)).all():
-        return
-    boxes = open_tables(gen).configs.set_index("config_id")[cols]
-    ingested[cols] = boxes.loc[ingested["config_id"].to_numpy()].to_numpy(float)
-    write_table(table, ingested)
 
 
 def base_cfgs(args: argparse.Namespace, n_sim_train: int) -> dict[str, tuple[TrainCfg, dict]]:

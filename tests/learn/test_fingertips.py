@@ -176,9 +176,9 @@ def test_the_cache_key_follows_the_locator_version(small_dataset, tmp_path, monk
     import vistac_learn.data.fingertips as fingertips
 
     t = open_tables(small_dataset)
-    before = tip_table._cache_path(t, LocatorCfg(), tmp_path)
+    before = tip_table.cache_path(t, LocatorCfg(), tmp_path)
     monkeypatch.setattr(fingertips, "LOCATOR_VERSION", fingertips.LOCATOR_VERSION + 1)
-    assert tip_table._cache_path(t, LocatorCfg(), tmp_path) != before
+    assert tip_table.cache_path(t, LocatorCfg(), tmp_path) != before
 
 
 def test_located_in_serves_given_images(small_dataset):

@@ -111,7 +111,7 @@ def test_finger_stays_inside_rotated_box(ds_dir):
         assert vs.max() <= by + bh
 
 
-def test_box_variant_without_boxes_is_a_clear_error(ds_dir, tmp_path):
+def test_box_variant_without_boxes_locates_them(ds_dir, tmp_path):
     import shutil
 
     import pandas as pd
@@ -124,7 +124,9 @@ def test_box_variant_without_boxes_is_a_clear_error(ds_dir, tmp_path):
     t = open_tables(d)
     base = SampleSet(t, t.rows(None), SampleSpec(make_view("color-base"), 24, ("index",)))
     assert base.batch(np.arange(4))["image"].shape == (4, 3, 24, 24)
-    with pytest.raises(UserError, match="needs columns bbox_index"):
-        SampleSet(t, t.rows(None), SampleSpec(make_view("edge-index"), 24, ("index",)))
+    # the boxes a view needs and the dataset lacks are located in the images
+    # (vistac_learn.data.located_boxes), not refused
+    located = SampleSet(t, t.rows(None), SampleSpec(make_view("edge-index"), 24, ("index",)))
+    assert located.boxes is not None and located.batch(np.arange(4))["found"].all()
     with pytest.raises(UserError, match="name: must be one of"):
         V.VariantCfg("edge-pinky")

@@ -143,12 +143,15 @@ def locator_fingerprint(cfg: LocatorCfg) -> str:
     return key
 
 
-def _cache_path(tables: DatasetTables, cfg: LocatorCfg, cache_dir: Path | None) -> Path:
+def cache_path(tables: DatasetTables, cfg: LocatorCfg, cache_dir: Path | None,
+               kind: str = "fingertips") -> Path:
+    """Where a table located in a dataset's images is cached (`kind`: ``fingertips``, or the
+    finger boxes', `vistac_learn.data.located_boxes`): keyed by the locator and the images."""
     h = hashlib.sha256()
     h.update(locator_fingerprint(cfg).encode())
     h.update(tables.image_fingerprint().encode())  # labels do not move a fingertip
     folder = cache_dir if cache_dir is not None else tables.root / "cache"
-    return Path(folder) / f"fingertips-{h.hexdigest()[:20]}.parquet"
+    return Path(folder) / f"{kind}-{h.hexdigest()[:20]}.parquet"
 
 
 def _read_cache(path: Path, tables: DatasetTables) -> FingertipTable | None:
@@ -179,7 +182,7 @@ def fingertip_table(tables: DatasetTables, cfg: LocatorCfg = LocatorCfg(),
     Raises:
         UserError: An unreadable image or an unwritable cache folder.
     """
-    path = _cache_path(tables, cfg, Path(cache_dir) if cache_dir is not None else None)
+    path = cache_path(tables, cfg, Path(cache_dir) if cache_dir is not None else None)
     cached = _read_cache(path, tables)
     if cached is not None:
         return cached

@@ -45,6 +45,7 @@ from vistac.errors import UserError
 from vistac_learn.data.contacts import contact_truth
 from vistac_learn.data.fingertip_table import FingertipTable
 from vistac_learn.data.fingertips import Fingertip, read_rgb
+from vistac_learn.data.located_boxes import BoxTable, box_table, missing_boxes
 from vistac_learn.data.perturb import (
     Scene,
     is_flat_render,
@@ -186,6 +187,11 @@ class SampleSet(torch.utils.data.Dataset):
         spec: What each sample is (view, size, fingers, target, rotations, augmentation,
             mirroring, seed); its settings are also attributes of the set.
         tips: Located fingertips (required by views that need them).
+        boxes: Finger boxes for views that need boxes the dataset lacks (``bbox_*`` NaN, as
+            `vistac ingest` leaves them): the dataset's own where finite, located in the
+            image elsewhere (`vistac_learn.data.located_boxes`; located here, cached in the
+            dataset's folder, when not given). A finger with no box masks its row out
+            (`found`), as a fingertip not found does.
         images: Where a configuration row's image comes from (default: decoded from the
             dataset), e.g. perturbed copies for a stress test.
         threads: Threads rendering a batch's samples in the training process (see
@@ -194,14 +200,15 @@ class SampleSet(torch.utils.data.Dataset):
 
     def __init__(self, tables: DatasetTables, rows: np.ndarray, spec: SampleSpec,
                  tips: FingertipTable | None = None,
-                 images: Callable[[int], np.ndarray] | None = None, threads: int = 2):
+                 images: Callable[[int], np.ndarray] | None = None, threads: int = 2,
+                 boxes: BoxTable | None = None):
         view, target, rotations, augment = spec.view, spec.target, spec.rotations, spec.augment
         if view.needs_tips and tips is None:
             raise ValueError(f"view {view.name} needs located fingertips")
-        for f in view.needs_boxes:
-            if not tables.has_boxes(f):
-                raise UserError(f"{tables.root / 'configs.parquet'}: view {view.name} needs "
-                                f"columns bbox_{f}_x|y|w|h with finite values")
+        located = missing_boxes(tables, view.needs_boxes)
+        if located and boxes is None:
+            boxes = box_table(tables)
+        self.boxes = boxes if located else None  # the dataset's own boxes wherever it has all
         self.tables, self.spec = tables, spec
         # the spec's settings, read per sample here and by scoring and evaluation
         self.view, self.size, self.fingers = view, spec.size, spec.fingers
@@ -224,6 +231,10 @@ class SampleSet(torch.utils.data.Dataset):
         ok = [tips.frame[f"{f}_ok"].to_numpy() if view.needs_tips else
               np.ones(len(tables.configs), bool) for f in self.fingers]
         self._found = np.stack(ok, axis=1)
+        if self.boxes is not None:  # a row with a needed finger's box not found: no input
+            boxed = np.logical_and.reduce([self.boxes.frame[f"{f}_ok"].to_numpy(bool)
+                                           for f in view.needs_boxes])
+            self._found &= boxed[:, None]
         self._table_rgb = tables.table_rgb
         self._contacts = contact_truth(tables) if view.needs_contacts else None
         self._draws: tuple[int, np.ndarray] | None = None  # (epoch, press draws), see targets
@@ -311,7 +322,8 @@ class SampleSet(torch.utils.data.Dataset):
 
     def info(self, row: int) -> SampleInfo:
         """Boxes, fingertips and background of a configuration row."""
-        boxes = {f: self.tables.box(row, f) for f in self.view.needs_boxes}
+        boxes = {f: self.tables.box(row, f) if self.boxes is None else self.boxes.box(row, f)
+                 for f in self.view.needs_boxes}
         tips = {f: self.tips.get(row, f) for f in FINGERS} if self.view.needs_tips else {}
         contacts = {}
         if self._contacts is not None:

@@ -6,7 +6,9 @@ tip view: its sample is masked out of the loss and the scores. A few such images
 dataset are harmless; many of them make a loss and a score that describe nothing (an all-black
 dataset trained to "loss 0"). So every learning command counts them per split (`tip_coverage`),
 says so (`TipCoverage.line`), and training and evaluation stop before any work when a split's
-share is above a threshold (`TipCoverage.check`, ``--max-missing-pct``, default 1 %).
+share is above a threshold (`TipCoverage.check`, ``--max-missing-pct``, default 1 %). The finger
+boxes located where a dataset has none (`vistac_learn.data.located_boxes`, for the study's
+views) are counted and gated the same way.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from vistac.dataset import DatasetTables
 from vistac.dataset.schema import CONFIGS
 from vistac.errors import UserError
 from vistac_learn.data.fingertip_table import FingertipTable
+from vistac_learn.data.located_boxes import BoxTable
 
 MAX_MISSING_PCT = 1.0
 """Default largest share (%) of a split's configurations whose fingertips were not found."""
@@ -35,6 +38,8 @@ class TipCoverage:
         per_finger: Finger -> configurations where that finger was not found.
         example: Image file of the first such configuration, or "".
         reason: Why that finger was not found, or "".
+        what: What was looked for: ``fingertips``, or ``finger boxes`` (located where the
+            dataset has none).
     """
 
     split: str
@@ -43,6 +48,7 @@ class TipCoverage:
     per_finger: dict[str, int] = field(default_factory=dict)
     example: str = ""
     reason: str = ""
+    what: str = "fingertips"
 
     @property
     def pct(self) -> float:
@@ -52,9 +58,9 @@ class TipCoverage:
     def line(self) -> str:
         """One line saying how many were not found, and an example."""
         if not self.missing:
-            return f"fingertips found in all {self.n} configurations of the {self.split} split"
+            return f"{self.what} found in all {self.n} configurations of the {self.split} split"
         fingers = ", ".join(f"{f} {k}" for f, k in self.per_finger.items() if k)
-        return (f"fingertips not found in {self.missing} of {self.n} configurations "
+        return (f"{self.what} not found in {self.missing} of {self.n} configurations "
                 f"({self.pct:.3g} %) of the {self.split} split ({fingers}), e.g. {self.example} "
                 f"({self.reason})")
 
@@ -78,17 +84,19 @@ class TipCoverage:
         return cls(**d)
 
 
-def tip_coverage(tables: DatasetTables, tips: FingertipTable, rows: np.ndarray,
+def tip_coverage(tables: DatasetTables, tips: FingertipTable | BoxTable, rows: np.ndarray,
                  fingers: tuple[str, ...], split: str) -> TipCoverage:
-    """Count the configurations among `rows` whose fingers (of `fingers`) were not found."""
+    """Count the configurations among `rows` whose fingers (of `fingers`) were not found (in a
+    fingertip table, or a table of finger boxes)."""
+    what = "finger boxes" if isinstance(tips, BoxTable) else "fingertips"
     rows = np.asarray(rows, dtype=np.int64)
     ok = np.stack([tips.frame[f"{f}_ok"].to_numpy(bool)[rows] for f in fingers], axis=1) \
         if len(rows) else np.ones((0, len(fingers)), bool)
     lost = ~ok.all(axis=1)
     per = {f: tips.failures(rows, f) for f in fingers}
     if not lost.any():
-        return TipCoverage(split, len(rows), 0, per)
+        return TipCoverage(split, len(rows), 0, per, what=what)
     first = int(rows[np.flatnonzero(lost)[0]])
     finger = next(f for f in fingers if not tips.get(first, f).ok)
     return TipCoverage(split, len(rows), int(lost.sum()), per, str(tables.image_path(first)),
-                       f"{finger}: {tips.get(first, finger).reason}")
+                       f"{finger}: {tips.get(first, finger).reason}", what)

@@ -17,8 +17,9 @@ Views:
   contact geometry as auxiliary targets (`View.aux`). Output (2, 3, S, S) whichever finger is
   the target.
 - The study's ``<color|edge>-<base|crop|index|thumb>`` (docs/study.md section 4,
-  `vistac_learn.data.variants`): the whole image rotated, optionally cut to the finger boxes.
-  Output (C, S, S).
+  `vistac_learn.data.variants`): the whole image rotated, optionally cut to the finger boxes
+  (the simulator's, or where the dataset has none, as after `vistac ingest`, each finger's
+  located in the image: `vistac_learn.data.located_boxes`). Output (C, S, S).
 
 Augmentations (`Aug`, drawn per sample by `vistac_learn.data.augment`) and what they do to the
 labels, which are forces in each fingertip's own frame:
@@ -113,6 +114,10 @@ class StudyView(View):
         self.needs_boxes = self.cfg.region_fingers
 
     def render(self, rgb, info, aug, size, fingers):
+        if any(info.boxes.get(f) is None for f in self.needs_boxes):
+            # a finger not found in an image without boxes (`vistac_learn.data.located_boxes`):
+            # no input, the sample is masked out (`SampleSet.found`)
+            return np.zeros((self.channels, size, size), np.uint8)
         cfg = VariantCfg(self.cfg.name, size, self.cfg.margin)
         edges = auto_canny(rgb, cfg.canny_low_ratio, cfg.canny_floor) if cfg.mode == "edge" \
             else None

@@ -49,6 +49,7 @@ from vistac_learn.metrics.scoring import (
     score,
 )
 from vistac_learn.train.build import (
+    build_boxes,
     build_model,
     build_samples,
     build_view,
@@ -209,17 +210,23 @@ def evaluate_run(cfg: EvaluateCfg, out: str | Path | None = None, *,
     size = input_size(train_cfg, model)
     tips = fingertip_table(tables, cache_dir=train_cfg.cache_dir, progress=progress) \
         if build_view(train_cfg).needs_tips else None
+    boxes = build_boxes(train_cfg, tables, progress)  # where the dataset has none (ingested)
     coverage = None
     if tips is not None:
         coverage = tip_coverage(tables, tips, tables.rows(split), fingers_of(train_cfg.finger),
                                 split)
         coverage.check(cfg.max_missing_pct)
-    ds = build_samples(train_cfg, tables, split, size, tips)
+    if boxes is not None:
+        box_cov = tip_coverage(tables, boxes, tables.rows(split),
+                               build_view(train_cfg).needs_boxes, split)
+        box_cov.check(cfg.max_missing_pct)
+        coverage = coverage or box_cov
+    ds = build_samples(train_cfg, tables, split, size, tips, boxes=boxes)
     t0 = time.perf_counter()
     if tta:
         pred = predict_mirror_averaged(
             model, lambda mirror: build_samples(train_cfg, tables, split, size, tips,
-                                                mirror=mirror) if mirror else ds,
+                                                mirror=mirror, boxes=boxes) if mirror else ds,
             dev, train_cfg.eval_batch_size)
     else:
         pred = predict(model, ds, dev, train_cfg.eval_batch_size)

@@ -16,6 +16,7 @@ from vistac.dataset import DatasetTables, read_manifest
 from vistac.dataset.files import check_out_dir
 from vistac.errors import UserError
 from vistac_learn.data.fingertip_table import FingertipTable
+from vistac_learn.data.located_boxes import BoxTable, box_table, missing_boxes
 from vistac_learn.data.samples import SampleSet, SampleSpec, fingers_of
 from vistac_learn.data.tip_coverage import TipCoverage, tip_coverage
 from vistac_learn.data.views import PINCH_VIEW, View, make_view
@@ -88,12 +89,23 @@ def subset_rows(rows: np.ndarray, fraction: float, seed: int) -> np.ndarray:
     return np.sort(rows[rng.permutation(len(rows))[:keep]])
 
 
+def build_boxes(cfg: TrainCfg, tables: DatasetTables, progress: bool = False
+                ) -> BoxTable | None:
+    """The finger boxes of a run whose view needs boxes the dataset lacks (``bbox_*`` NaN, as
+    `vistac ingest` leaves them): located in the images (`vistac_learn.data.located_boxes`,
+    cached in ``cfg.cache_dir``); None where the dataset's own serve."""
+    if not missing_boxes(tables, build_view(cfg).needs_boxes):
+        return None
+    return box_table(tables, cache_dir=cfg.cache_dir, progress=progress)
+
+
 def build_samples(cfg: TrainCfg, tables: DatasetTables, split: str, size: int,
                   tips: FingertipTable | None, train: bool = False,
-                  mirror: bool = False) -> SampleSet:
+                  mirror: bool = False, boxes: BoxTable | None = None) -> SampleSet:
     """The samples of one split: training ones with the run's augmentation (and only its
     `train_fraction`), others whole and without augmentation; `mirror` (not with `train`):
-    every sample mirrored (test-time augmentation)."""
+    every sample mirrored (test-time augmentation); `boxes`: located finger boxes
+    (`build_boxes`)."""
     view = build_view(cfg)
     rows = tables.rows(split)
     if train:
@@ -101,24 +113,28 @@ def build_samples(cfg: TrainCfg, tables: DatasetTables, split: str, size: int,
     spec = SampleSpec(view, size, fingers_of(cfg.finger), cfg.target if train else "mean",
                       cfg.seed, cfg.rotation_cfg(), cfg.augment_cfg() if train else None,
                       mirror)
-    return SampleSet(tables, rows, spec, tips)
+    return SampleSet(tables, rows, spec, tips, boxes=boxes)
 
 
-def run_coverage(cfg: TrainCfg, tables: DatasetTables, tips: FingertipTable | None
-                 ) -> list[TipCoverage]:
-    """The fingertips not found in the run's training rows and validation split (nothing for
-    views that locate none), each split checked against ``cfg.max_missing_pct``.
+def run_coverage(cfg: TrainCfg, tables: DatasetTables, tips: FingertipTable | None,
+                 boxes: BoxTable | None = None) -> list[TipCoverage]:
+    """The fingertips (and located finger boxes, `build_boxes`) not found in the run's
+    training rows and validation split (nothing for views that locate none), each split
+    checked against ``cfg.max_missing_pct``.
 
     Raises:
         UserError: a split above the threshold (how many, an example image).
     """
-    if tips is None:
-        return []
-    fingers = fingers_of(cfg.finger)
     rows = {cfg.train_split: subset_rows(tables.rows(cfg.train_split), cfg.train_fraction,
                                          cfg.seed),
             cfg.val_split: tables.rows(cfg.val_split)}
-    out = [tip_coverage(tables, tips, r, fingers, split) for split, r in rows.items()]
+    out = []
+    if tips is not None:
+        fingers = fingers_of(cfg.finger)
+        out += [tip_coverage(tables, tips, r, fingers, split) for split, r in rows.items()]
+    if boxes is not None:
+        fingers = build_view(cfg).needs_boxes
+        out += [tip_coverage(tables, boxes, r, fingers, split) for split, r in rows.items()]
     for c in out:
         c.check(cfg.max_missing_pct)
     return out
@@ -144,7 +160,8 @@ def check_paths(cfg: TrainCfg) -> None:
 
 def check_data(cfg: TrainCfg, progress: bool = False) -> list[str]:
     """Before a tuning or an experiment: the run's dataset opens and its fingertips (located
-    into the cache, for views that need them) are found often enough; one line per split.
+    into the cache, for views that need them) and the finger boxes it lacks (located likewise,
+    for views that need them) are found often enough; one line per split.
 
     Raises:
         UserError: a damaged dataset, a split above ``cfg.max_missing_pct``.
@@ -152,8 +169,11 @@ def check_data(cfg: TrainCfg, progress: bool = False) -> list[str]:
     from vistac.dataset import open_tables
     from vistac_learn.data.fingertip_table import fingertip_table
 
-    if not build_view(cfg).needs_tips:
+    view = build_view(cfg)
+    if not view.needs_tips and not view.needs_boxes:
         return []
     tables = open_tables(cfg.data)
-    tips = fingertip_table(tables, cache_dir=cfg.cache_dir, progress=progress)
-    return [f"{cfg.data}: {c.line()}" for c in run_coverage(cfg, tables, tips)]
+    tips = fingertip_table(tables, cache_dir=cfg.cache_dir, progress=progress) \
+        if view.needs_tips else None
+    boxes = build_boxes(cfg, tables, progress)
+    return [f"{cfg.data}: {c.line()}" for c in run_coverage(cfg, tables, tips, boxes)]

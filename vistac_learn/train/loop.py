@@ -56,6 +56,7 @@ from vistac_learn.data.loading import loader
 from vistac_learn.data.samples import SampleSet, fingers_of
 from vistac_learn.metrics.scoring import predict, score_predictions
 from vistac_learn.train.build import (
+    build_boxes,
     build_model,
     build_samples,
     build_view,
@@ -258,9 +259,10 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
     check_fits(model, view.channels, size, cfg.batch_size, cfg.eval_batch_size, device)
     tips = fingertip_table(tables, cache_dir=cfg.cache_dir, progress=progress) \
         if view.needs_tips else None
-    coverage = run_coverage(cfg, tables, tips)  # refuses too many fingertips not found
-    train_ds = build_samples(cfg, tables, cfg.train_split, size, tips, train=True)
-    val_ds = build_samples(cfg, tables, cfg.val_split, size, tips)
+    boxes = build_boxes(cfg, tables, progress)  # where the dataset has none (ingested)
+    coverage = run_coverage(cfg, tables, tips, boxes)  # refuses too many fingers not found
+    train_ds = build_samples(cfg, tables, cfg.train_split, size, tips, train=True, boxes=boxes)
+    val_ds = build_samples(cfg, tables, cfg.val_split, size, tips, boxes=boxes)
     model.to(device)
     n_batches = math.ceil(len(train_ds) / cfg.batch_size)
     opt, sched = _optimizer(cfg, model, n_batches * cfg.epochs)
