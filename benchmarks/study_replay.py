@@ -89,11 +89,11 @@ def add_grasp_options(p: argparse.ArgumentParser) -> None:
     (default: the scene file's)."""
     p.add_argument("--approach-spread", type=float, default=None,
                    help="grasp: max degrees of a finger's axis off its target's normal "
-                   "(default: the scene file's; benchmarks/study_spread.py measures what it "
+                   "(None: the scene file's; benchmarks/study_spread.py measures what it "
                    "changes)")
     p.add_argument("--closing-spread", type=float, default=None,
                    help="grasp: max degrees of the closing axis off the index target's normal "
-                   "(default: the scene file's)")
+                   "(None: the scene file's)")
 
 
 def train_fraction(tables, n_train: int) -> float:
