@@ -96,6 +96,15 @@ def add_grasp_options(p: argparse.ArgumentParser) -> None:
                    "(None: the scene file's)")
 
 
+def constant_predictor(tables) -> dict:
+    """Index-finger metrics on the test split of a net that learnt nothing: every test
+    configuration predicted as the mean training label."""
+    train, test = tables.rows("train"), tables.rows("test")
+    mean = tables.mean_label("index")
+    pred = np.tile(mean[train].mean(0), (len(test), 1))
+    return score(pred, tables, test, test, ("index",))["index"]
+
+
 def train_fraction(tables, n_train: int) -> float:
     """The `--train-fraction` that keeps `n_train` of the training configurations (the
     trainer keeps ceil(fraction x n))."""
@@ -242,7 +251,9 @@ def replay(args: argparse.Namespace) -> dict:
     refs = [{"label": e["label"], "kind": "reference",
              "summary": {"n_seeds": 1, **{k: {"mean": e["metrics"]["index"][k], "std": 0.0}
                                          for k in (*STUDY_KEYS, "angle_to_mean_median_deg")}}}
-            for e in reference_entries(data, ("index",))]
+            for e in [*reference_entries(data, ("index",)),
+                      {"label": "constant (mean training label)",
+                       "metrics": {"index": constant_predictor(tables)}}]]
     study_common = {"train_fraction": frac, "epochs": args.epochs,
                     "n_rotations": args.n_rotations, "cache_dir": str(work / "cache")}
     arms = [(m, "study", {"model": m, **study_common}) for m in args.models]
