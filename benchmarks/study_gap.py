@@ -19,9 +19,14 @@ of ``--seeds``. The full twin's row comes from ``benchmarks/results/study_replay
 settings are the same (``--full-from``), else it is trained here too.
 
 The table: % correct y, % in cone and the median angle to the cone mean of each variant (mean
-± std over seeds), what the imperfection costs (full twin minus the variant without it, so a
+± std over seeds), what the imperfection costs (the variant without it minus the full twin, so a
 positive cost means the effect lowers the figure), the variant's own noise floor and the
 training CPU seconds.
+
+``--untrained``: no training; each variant's row is the constant predictor (the mean training
+label for every test configuration), what V3 scores on the full twin at 162 configurations
+(docs/results.md), so the table says in minutes what each effect costs a net that learns the
+set-up's mean direction and nothing else (default name ``study_gap_untrained``).
 
 Resumable: a rerun reuses datasets and finished runs and rewrites ``<name>.json|md|png``.
 
@@ -43,7 +48,14 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from learnbench import reference_entries, run_entry  # noqa: E402
-from study_replay import RESULTS, dataset, fmt, summarise, train_fraction  # noqa: E402
+from study_replay import (  # noqa: E402
+    RESULTS,
+    constant_predictor,
+    dataset,
+    fmt,
+    summarise,
+    train_fraction,
+)
 from studybench import V3, record, scene_file, twin_parser  # noqa: E402
 
 from vistac.dataset import open_tables  # noqa: E402
@@ -101,11 +113,13 @@ def cost_table(rows: list[dict], note: str) -> str:
     full = next((r for r in rows if r["variant"] == "full"), None)
     for r in rows:
         s = r["summary"]
-        cells = [r["label"], str(s["n_seeds"]),
-                 *(f"{fmt(k, s[k]['mean'])} ± {fmt(k, s[k]['std'])}" for _, k in KEYS)]
+        untrained = s["seeds"] == [None]
+        cells = [r["label"], "-" if untrained else str(s["n_seeds"]),
+                 *(fmt(k, s[k]["mean"]) + ("" if untrained else f" ± {fmt(k, s[k]['std'])}")
+                   for _, k in KEYS)]
         for k in ("correct_y_pct", "in_cone_pct"):
             cells.append("-" if full is None or r is full else
-                         f"{full['summary'][k]['mean'] - s[k]['mean']:+.1f}")
+                         f"{s[k]['mean'] - full['summary'][k]['mean']:+.1f}")
         floor = r.get("noise_floor")
         cells += ["-" if floor is None else fmt("in_cone_pct", floor["in_cone_pct"]),
                   "-" if not s.get("train_cpu_s") else f"{s['train_cpu_s']:.0f}"]
@@ -142,7 +156,7 @@ def gap(args: argparse.Namespace) -> dict:
         print("note: fewer than 2 seeds (a quick look, not the table)", flush=True)
     work = Path(args.work)
     variants = list(dict.fromkeys(["full", *args.variants]))
-    full_row = replay_row(args)
+    full_row = None if args.untrained else replay_row(args)
     if full_row is not None:
         variants.remove("full")
     done: dict[str, list[dict]] = {}
@@ -159,14 +173,17 @@ def gap(args: argparse.Namespace) -> dict:
         rows += [{"variant": v, "label": VARIANTS[v][0], "summary": summarise(done[v]),
                   "noise_floor": floors.get(v), "runs": done[v],
                   "scene_changes": VARIANTS[v][1]} for v in variants if done.get(v)]
-        note = (f"Index finger. SchoeConv100-V3(FC160), `--protocol study` on {args.n_train} "
+        what = ("The constant predictor (no training: the mean training label for every "
+                "test configuration)" if args.untrained else
+                f"SchoeConv100-V3(FC160), `--protocol study` on {args.n_train} "
                 f"training configurations x {args.n_rotations} rotations, {args.epochs} epochs, "
-                "the epoch chosen on validation, scored once on each variant's test split "
+                "the epoch chosen on validation,")
+        note = (f"Index finger. {what} scored once on each variant's test split "
                 f"(held-out objects). Each variant: `{Path(args.scene).name}` with one effect "
                 f"changed, its own dataset of {args.n} configurations from seed "
-                f"{args.data_seed}. Cost: the full twin's figure minus the variant's (positive: "
-                "the effect lowers it). Mean ± std over seeds; training CPU seconds: user + "
-                "system, 2 cores.")
+                f"{args.data_seed}. Cost: the variant's figure (without the effect) minus "
+                "the full twin's (positive: the effect lowers it). Mean ± std over seeds; "
+                "training CPU seconds: user + system, 2 cores.")
         result.update({"provenance": provenance(list(datasets.values())),
                        "datasets": {k: str(v) for k, v in datasets.items()},
                        "settings": {k: (str(v) if isinstance(v, Path) else v)
@@ -175,8 +192,9 @@ def gap(args: argparse.Namespace) -> dict:
         out = Path(args.results)
         out.mkdir(parents=True, exist_ok=True)
         (out / f"{args.name}.json").write_text(json.dumps(result, indent=2) + "\n")
-        (out / f"{args.name}.md").write_text("# What each imperfection of the twin costs the "
-                                             f"study's V3\n\n{result['table']}\n")
+        who = "a net that learnt nothing" if args.untrained else "the study's V3"
+        (out / f"{args.name}.md").write_text("# What each imperfection of the twin costs "
+                                             f"{who}\n\n{result['table']}\n")
         plot(rows, out / f"{args.name}.png")
 
     for v in variants:
@@ -186,6 +204,13 @@ def gap(args: argparse.Namespace) -> dict:
         datasets[v] = dataset(vargs)
         refs = reference_entries(datasets[v], ("index",))
         floors[v] = refs[0]["metrics"]["index"] if refs else None
+        if args.untrained:
+            const = constant_predictor(open_tables(datasets[v]))
+            done[v] = [{"seed": None, "metrics": {"index": const}}]
+    if args.untrained:
+        write()
+        print(result["table"], flush=True)
+        return result
     for seed in args.seeds:
         for v in variants:
             tables = open_tables(datasets[v])
@@ -214,8 +239,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--n-rotations", type=int, default=20, help="study protocol rotations")
     p.add_argument("--photo-max-missing-pct", type=float, default=10.0,
                    help="--max-missing-pct of the photo variant (the locator on photo renders)")
+    p.add_argument("--untrained", action="store_true",
+                   help="no training: the constant predictor per variant (minutes)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
-    gap(p.parse_args(argv))
+    args = p.parse_args(argv)
+    if args.untrained and args.name == "study_gap":
+        args.name = "study_gap_untrained"
+    gap(args)
     return 0
 
 
