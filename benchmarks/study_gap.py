@@ -61,6 +61,7 @@ from studybench import V3, record, scene_file, twin_parser  # noqa: E402
 from vistac.dataset import open_tables  # noqa: E402
 from vistac.provenance import provenance  # noqa: E402
 from vistac_learn.evaluate.references import LABELS  # noqa: E402
+from vistac_learn.models import model_info  # noqa: E402
 from vistac_sim.effects.presets import PRESETS  # noqa: E402
 
 KEYS = (("% correct y", "correct_y_pct"), ("% in cone", "in_cone_pct"),
@@ -97,7 +98,7 @@ def replay_row(args: argparse.Namespace) -> dict | None:
         print(f"{path}: other settings than this run's; the full twin is trained here",
               flush=True)
         return None
-    rows = [r for r in res["rows"] if r.get("name") == V3 and r["kind"] == "model"]
+    rows = [r for r in res["rows"] if r.get("name") == args.model and r["kind"] == "model"]
     if not rows or rows[0]["summary"]["n_seeds"] < len(args.seeds):
         return None
     floor = [r for r in res["rows"] if r["label"] == LABELS["noise_floor"]]
@@ -145,7 +146,7 @@ def plot(rows: list[dict], path: Path) -> None:
     ax.set_ylim(0, 100)
     ax.set_ylabel("% (index finger, test)")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, title="V3 at 162 configurations; dotted: full twin",
+    ax.legend(fontsize=8, title="dots: each variant; dotted: full twin",
               title_fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -177,7 +178,8 @@ def gap(args: argparse.Namespace) -> dict:
                   "scene_changes": VARIANTS[v][1]} for v in variants if done.get(v)]
         what = ("The constant predictor (no training: the mean training label for every "
                 "test configuration)" if args.untrained else
-                f"SchoeConv100-V3(FC160), `--protocol study` on {args.n_train} "
+                f"{model_info(args.model, 1, 2).get('display', args.model)}, `--protocol "
+                f"study` on {args.n_train} "
                 f"training configurations x {args.n_rotations} rotations, {args.epochs} epochs, "
                 "the epoch chosen on validation,")
         note = (f"Index finger. {what} scored once on each variant's test split "
@@ -195,7 +197,8 @@ def gap(args: argparse.Namespace) -> dict:
         out = Path(args.results)
         out.mkdir(parents=True, exist_ok=True)
         (out / f"{args.name}.json").write_text(json.dumps(result, indent=2) + "\n")
-        who = "a net that learnt nothing" if args.untrained else "the study's V3"
+        who = "a net that learnt nothing" if args.untrained else \
+            model_info(args.model, 1, 2).get("display", args.model)
         (out / f"{args.name}.md").write_text("# What each imperfection of the twin costs "
                                              f"{who}\n\n{result['table']}\n")
         plot(rows, out / f"{args.name}.png")
@@ -219,8 +222,8 @@ def gap(args: argparse.Namespace) -> dict:
             tables = open_tables(datasets[v])
             extra = {"max_missing_pct": args.photo_max_missing_pct} if v == "photo" else {}
             t0 = time.perf_counter()
-            e = run_entry(datasets[v], work / v, f"{v} seed {seed}", protocol="study",
-                          seed=seed, progress=not args.quiet, model=V3,
+            e = run_entry(datasets[v], work / v, f"{v} {args.model} seed {seed}", protocol="study",
+                          seed=seed, progress=not args.quiet, model=args.model,
                           train_fraction=train_fraction(tables, args.n_train),
                           epochs=args.epochs, n_rotations=args.n_rotations,
                           cache_dir=str(work / v / "cache"), **extra)
@@ -242,6 +245,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--n-rotations", type=int, default=20, help="study protocol rotations")
     p.add_argument("--photo-max-missing-pct", type=float, default=10.0,
                    help="--max-missing-pct of the photo variant (the locator on photo renders)")
+    p.add_argument("--model", default=V3, help="the study's net trained per variant (SmallConv, "
+                   "5 minutes a run, scores as V3 does on the twin: docs/results.md)")
     p.add_argument("--untrained", action="store_true",
                    help="no training: the constant predictor per variant (minutes)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
