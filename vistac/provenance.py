@@ -29,14 +29,22 @@ def _git(*args: str) -> str | None:
     return out.stdout.strip()
 
 
+RESULTS_DIR = "benchmarks/results/"
+"""Where the benchmarks write: changes there are their own outputs, not a dirty checkout."""
+
+
 def git_state() -> tuple[str | None, bool | None]:
-    """(commit, whether tracked files differ from it) of the checkout holding this package;
-    (None, None) for an installed copy outside a git checkout."""
+    """(commit, whether tracked files other than the benchmarks' results differ from it) of the
+    checkout holding this package; (None, None) for an installed copy outside a git checkout."""
     commit = _git("rev-parse", "HEAD")
     if commit is None:
         return None, None
     status = _git("status", "--porcelain", "--untracked-files=no")
-    return commit, bool(status) if status is not None else None
+    if status is None:
+        return commit, None
+    changed = [line.split(maxsplit=1)[1].split(" -> ")[-1] for line in status.splitlines()
+               if line.strip()]
+    return commit, any(not path.startswith(RESULTS_DIR) for path in changed)
 
 
 def cpu_model() -> str:

@@ -121,3 +121,28 @@ def test_every_results_json_records_its_command_and_commit():
         if not (prov.get("command") and prov.get("commit")):
             missing.append(path.name)
     assert missing == []
+
+
+def test_a_checkout_is_dirty_by_its_code_not_by_the_benchmarks_own_results(tmp_path,
+                                                                           monkeypatch):
+    """`provenance.dirty`: a changed tracked file counts, a changed results file does not (a
+    benchmark rewriting its own results must not call its checkout dirty)."""
+    import subprocess
+
+    from vistac import provenance
+
+    def git(*args):
+        subprocess.run(["git", "-C", str(tmp_path), *args], check=True, capture_output=True)
+
+    (tmp_path / "benchmarks" / "results").mkdir(parents=True)
+    (tmp_path / "code.py").write_text("x = 1\n")
+    (tmp_path / "benchmarks" / "results" / "r.json").write_text("{}\n")
+    git("init", "-q")
+    git("add", "-A")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "init")
+    monkeypatch.setattr(provenance, "REPO", tmp_path)
+    assert provenance.git_state()[1] is False
+    (tmp_path / "benchmarks" / "results" / "r.json").write_text('{"a": 1}\n')
+    assert provenance.git_state()[1] is False
+    (tmp_path / "code.py").write_text("x = 2\n")
+    assert provenance.git_state()[1] is True
