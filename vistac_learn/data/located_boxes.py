@@ -32,7 +32,7 @@ from vistac.dataset.files import remove_stale_temporaries, write_table
 from vistac.errors import UserError
 from vistac.progress import bar as progress_bar
 from vistac_learn.data.finger_masks import explained_finger_masks
-from vistac_learn.data.locator import flat_render
+from vistac_learn.data.locator import flat_render, learned_fit, refine_regions
 from vistac_learn.data.locator_cfg import LocatorCfg
 from vistac_learn.data.variants import read_rgb
 
@@ -71,18 +71,10 @@ def located_masks(rgb: np.ndarray, colours: dict[str, tuple], cfg: LocatorCfg = 
     segmenter's finger (the segmenter's own mask where the colour gives none there)."""
     if cfg.segmenter == "off" or flat_render(rgb):
         return explained_finger_masks(rgb, colours, cfg)
-    from vistac_learn.data.locator import learned_fit
-
     learned, masks = learned_fit(rgb, colours, cfg)
     if cfg.segmenter == "always":
         return masks, {f: "" if masks[f].any() else learned[f].reason for f in masks}
-    import cv2
-
-    k = 2 * cfg.refine_px + 1
-    kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
-    regions = {f: cv2.dilate(m.astype(np.uint8), kernel) > 0 for f, m in masks.items()
-               if m.any()}
-    refined, why = explained_finger_masks(rgb, colours, cfg, regions)
+    refined, why = explained_finger_masks(rgb, colours, cfg, refine_regions(masks, cfg))
     for f, m in masks.items():
         if why[f] and m.any():
             refined[f], why[f] = m, ""

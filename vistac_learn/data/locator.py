@@ -118,8 +118,14 @@ def refined_fingertips(rgb: np.ndarray, colours: dict[str, tuple], cfg: LocatorC
     """The colour fit inside the segmenter's fingers: each finger's colour looked for only
     within `LocatorCfg.refine_px` of its learned mask (the whole image where that is empty),
     so the segmenter picks the blob and the colour fit draws its sub-pixel outline."""
+    return colour_fingertips(rgb, colours, cfg, refine_regions(learned_masks, cfg))
+
+
+def refine_regions(learned_masks: dict[str, np.ndarray], cfg: LocatorCfg
+                   ) -> dict[str, np.ndarray]:
+    """Where the colour fit looks under ``refine``: each learned finger mask grown by
+    `LocatorCfg.refine_px` (fingers the segmenter did not find are left out: the whole image)."""
     k = 2 * cfg.refine_px + 1
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
-    regions = {f: cv2.dilate(m.astype(np.uint8), kernel) > 0
-               for f, m in learned_masks.items() if m.any()}
-    return colour_fingertips(rgb, colours, cfg, regions)
+    return {f: cv2.dilate(m.astype(np.uint8), kernel) > 0
+            for f, m in learned_masks.items() if m.any()}
