@@ -23,7 +23,8 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from vistac.config import Config, add_options, param
+from vistac.config import Config, param
+from vistac.config_options import add_options
 
 PROGRESS_OPTIONS = ("no_progress",)
 Lines = Literal["each", "end", "none"]

@@ -19,14 +19,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from vistac.config import (
-    Config,
-    ConfigError,
-    RawDescriptionHelpFormatter,
-    add_options,
-    from_options,
-    param,
-)
+from vistac.config import Config, ConfigError, param
+from vistac.config_options import RawDescriptionHelpFormatter, add_options, from_options
 from vistac.dataset import SplitCfg
 from vistac.progress import add_progress_option, progress_wanted
 

@@ -9,17 +9,8 @@ from typing import Literal
 
 import pytest
 
-from vistac.config import (
-    Config,
-    ConfigError,
-    add_options,
-    apply,
-    flag_labels,
-    from_options,
-    option_values,
-    param,
-    to_dict,
-)
+from vistac.config import Config, ConfigError, apply, param, to_dict
+from vistac.config_options import add_options, flag_labels, from_options, option_values
 from vistac.errors import UserError
 
 

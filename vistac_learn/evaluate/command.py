@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from vistac.config import HelpFormatter, add_options, from_options
+from vistac.config_options import HelpFormatter, add_options, from_options
 from vistac.progress import add_progress_option, progress_wanted
 from vistac_learn.evaluate.config import EvaluateCfg
 

@@ -11,17 +11,14 @@ import argparse
 from dataclasses import dataclass
 from pathlib import Path
 
-from vistac.config import (
-    Config,
-    ConfigError,
+from vistac.config import Config, ConfigError, apply, param
+from vistac.config_options import (
     HelpFormatter,
     add_options,
-    apply,
     flag_labels,
     flag_of,
     from_options,
     option_values,
-    param,
 )
 from vistac.dataset.files import check_out_dir
 from vistac.errors import UserError

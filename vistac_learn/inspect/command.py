@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 
-from vistac.config import HelpFormatter, add_options, from_options
+from vistac.config_options import HelpFormatter, add_options, from_options
 from vistac_learn.inspect.config import InspectCfg
 
 OPTIONS = tuple(f.name for f in dataclasses.fields(InspectCfg))

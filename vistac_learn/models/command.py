@@ -6,7 +6,8 @@ import argparse
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from vistac.config import Config, HelpFormatter, add_options, from_options, param
+from vistac.config import Config, param
+from vistac.config_options import HelpFormatter, add_options, from_options
 from vistac_learn.models import list_models, model_info
 
 OPTIONS = ("in_channels", "out_features")

@@ -8,15 +8,13 @@ import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
-from vistac.config import (
-    Config,
+from vistac.config import Config, apply, param
+from vistac.config_options import (
     HelpFormatter,
     add_options,
-    apply,
     flag_labels,
     from_options,
     option_values,
-    param,
 )
 from vistac.progress import add_progress_option, progress_wanted
 from vistac_learn.train.config import PROTOCOLS, STUDY, TrainCfg, protocol_cfg

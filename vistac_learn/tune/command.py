@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from dataclasses import dataclass
 
-from vistac.config import Config, HelpFormatter, add_options, from_options, param
+from vistac.config import Config, param
+from vistac.config_options import HelpFormatter, add_options, from_options
 from vistac.engine import ENGINE_OPTIONS, EngineCfg
 from vistac.errors import UserError
 from vistac.progress import add_progress_option, progress_wanted

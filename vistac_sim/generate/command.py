@@ -6,15 +6,13 @@ import argparse
 import json
 from dataclasses import dataclass
 
-from vistac.config import (
-    Config,
+from vistac.config import Config, apply, param
+from vistac.config_options import (
     HelpFormatter,
     add_options,
-    apply,
     flag_labels,
     from_options,
     option_values,
-    param,
 )
 from vistac.engine import ENGINE_OPTIONS, WRITES_OPTIONS, EngineCfg
 from vistac.progress import add_progress_option, progress_wanted

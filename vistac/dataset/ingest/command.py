@@ -7,13 +7,8 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from vistac.config import (
-    Config,
-    HelpFormatter,
-    add_options,
-    from_options,
-    param,
-)
+from vistac.config import Config, param
+from vistac.config_options import HelpFormatter, add_options, from_options
 from vistac.dataset import SplitCfg
 from vistac.dataset.files import check_out_dir
 from vistac.dataset.ingest.config import MAX_COLUMN, ColumnMap, IngestCfg, IngestSources
