@@ -30,14 +30,19 @@ notebook alike (tests/core/test_entry_points.py).
 from __future__ import annotations
 
 import dataclasses
-import numbers
 import os
 import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from vistac.config import checked
+from vistac.api_args import (
+    check_max_cells,
+    config_arg,
+    count_arg,
+    folder_arg,
+    optional_config_arg,
+)
 from vistac.errors import UserError, brief
 from vistac.folder_lock import hold
 from vistac.outputs import Dataset, Evaluation, Report, Run
@@ -82,8 +87,9 @@ def generate(cfg: GenerateCfg, out: str | Path, *, workers: int = 0, resume: boo
     from vistac_sim.generate import WORKER_MODULES
     from vistac_sim.generate.config import GenerateCfg
 
-    cfg, out = _config(cfg, GenerateCfg, "cfg"), _folder(out, "out")
-    workers, engine = _count(workers, "workers"), _optional(engine, EngineCfg, "engine")
+    cfg, out = config_arg(cfg, GenerateCfg, "cfg"), folder_arg(out, "out")
+    workers = count_arg(workers, "workers")
+    engine = optional_config_arg(engine, EngineCfg, "engine")
     for path in cfg.objects.paths:
         if not Path(path).exists():
             raise UserError(f"--objects {path}: no such file or folder")
@@ -139,9 +145,9 @@ def ingest(sources: IngestSources, out: str | Path, cfg: IngestCfg | None = None
     from vistac.dataset.ingest.config import IngestCfg, IngestSources
     from vistac.dataset.ingest.run import ingest as run_ingest
 
-    sources, out = _config(sources, IngestSources, "sources"), _folder(out, "out")
+    sources, out = config_arg(sources, IngestSources, "sources"), folder_arg(out, "out")
     out = check_out_dir(out)
-    run_ingest(sources, out, _optional(cfg, IngestCfg, "cfg") or IngestCfg())
+    run_ingest(sources, out, optional_config_arg(cfg, IngestCfg, "cfg") or IngestCfg())
     return Dataset(out)
 
 
@@ -170,8 +176,8 @@ def train(cfg: TrainCfg, data: str | Path, out: str | Path, *, resume: bool = Fa
     from vistac_learn.train.config import TrainCfg
     from vistac_learn.train.job import JobCfg, run_job
 
-    cfg = _config(cfg, TrainCfg, "cfg")
-    data, out = _folder(data, "data"), _folder(out, "out")
+    cfg = config_arg(cfg, TrainCfg, "cfg")
+    data, out = folder_arg(data, "data"), folder_arg(out, "out")
     cfg = dataclasses.replace(cfg, data=str(data), out=str(out))
     check_paths(cfg)
     res = run_job(JobCfg(cfg, resume="yes" if resume else "no", progress=progress))
@@ -207,12 +213,12 @@ def evaluate(target: Run | str | Path | EvaluateCfg, *, progress: bool = False,
     if isinstance(target, EvaluateCfg):
         if options:
             raise UserError("evaluate: give the options in the EvaluateCfg, not beside it")
-        cfg = _config(target, EvaluateCfg, "target")
+        cfg = config_arg(target, EvaluateCfg, "target")
     else:
         if not isinstance(target, Run | str | os.PathLike):
             raise UserError(f"target: expected a Run, a run folder or an EvaluateCfg, got "
                             f"{brief(target)}")
-        run = target.path if isinstance(target, Run) else _folder(target, "target")
+        run = target.path if isinstance(target, Run) else folder_arg(target, "target")
         cfg = EvaluateCfg(run=str(run), **options)  # a ConfigError names the field
     if cfg.data is not None:
         try:
@@ -267,11 +273,12 @@ def tune(base: TrainCfg, data: str | Path, out: str | Path, *, trials: int = 20,
     from vistac_learn.tune.engines import TRIAL_OPTIONS, TrialCfg, tune_runner
     from vistac_learn.tune.space import load_space
 
-    base, data, out = _config(base, TrainCfg, "base"), _folder(data, "data"), _folder(out, "out")
-    trials, seed = _count(trials, "trials"), _count(seed, "seed")
-    space = None if space is None else _folder(space, "space")
-    engine = _optional(engine, EngineCfg, "engine") or EngineCfg()
-    trial = _optional(trial, TrialCfg, "trial") or TrialCfg()
+    base = config_arg(base, TrainCfg, "base")
+    data, out = folder_arg(data, "data"), folder_arg(out, "out")
+    trials, seed = count_arg(trials, "trials"), count_arg(seed, "seed")
+    space = None if space is None else folder_arg(space, "space")
+    engine = optional_config_arg(engine, EngineCfg, "engine") or EngineCfg()
+    trial = optional_config_arg(trial, TrialCfg, "trial") or TrialCfg()
     if engine.engine == "local":
         for name in TRIAL_OPTIONS:
             if getattr(trial, name) != getattr(TrialCfg(), name):
@@ -322,11 +329,11 @@ def sim2real(cfg: Sim2RealCfg, base: TrainCfg, *, max_cells: int | None = None,
     from vistac_learn.train.build import check_data
     from vistac_learn.train.config import TrainCfg
 
-    cfg, base = _config(cfg, S.Sim2RealCfg, "cfg"), _config(base, TrainCfg, "base")
+    cfg, base = config_arg(cfg, S.Sim2RealCfg, "cfg"), config_arg(base, TrainCfg, "base")
     S.check_inputs(cfg)
     cfg = S.resolved(cfg)
     check_out_dir(cfg.out)
-    _check_max_cells(max_cells)
+    check_max_cells(max_cells)
     base = dataclasses.replace(base, data=cfg.real, out=str(Path(cfg.out) / "runs"))
     for run in (S.pretrain_cfg(cfg, base), base):
         _notes(check_data(run, progress), progress)
@@ -354,11 +361,11 @@ def label_noise(cfg: LabelNoiseCfg, base: TrainCfg, *, max_cells: int | None = N
     from vistac_learn.train.build import check_data
     from vistac_learn.train.config import TrainCfg
 
-    cfg, base = _config(cfg, L.LabelNoiseCfg, "cfg"), _config(base, TrainCfg, "base")
+    cfg, base = config_arg(cfg, L.LabelNoiseCfg, "cfg"), config_arg(base, TrainCfg, "base")
     L.check_inputs(cfg)
     cfg = L.resolved(cfg)
     check_out_dir(cfg.out)
-    _check_max_cells(max_cells)
+    check_max_cells(max_cells)
     base = dataclasses.replace(base, data=cfg.data, out=str(Path(cfg.out) / "runs"))
     _notes(check_data(base, progress), progress)
     rows = L.run_label_noise(cfg, base, max_cells=max_cells, progress=progress, runner=runner)
@@ -370,60 +377,3 @@ def _notes(lines: list[str], progress: bool) -> None:
     if progress:
         for line in lines:
             print(line, file=sys.stderr, flush=True)
-
-
-def _config(value: Any, cls: type, name: str) -> Any:
-    """Argument `name`, a config of class `cls`, checked again as a whole (`checked`: a caller
-    may have changed it since it was made).
-
-    Raises:
-        UserError: not a `cls` (a dict, None, ...), naming the argument; a `ConfigError`
-            naming the field that is not allowed.
-    """
-    if not isinstance(value, cls):
-        article = "an" if cls.__name__[0] in "AEIOU" else "a"
-        raise UserError(f"{name}: expected {article} {cls.__name__} ({cls.__module__}."
-                        f"{cls.__name__}(...)), got {brief(value)}")
-    return checked(value)
-
-
-def _optional(value: Any, cls: type, name: str) -> Any:
-    """`_config` for an argument that may be None."""
-    return None if value is None else _config(value, cls, name)
-
-
-def _folder(value: Any, name: str) -> Path:
-    """Argument `name`, a path (text or `os.PathLike`, not empty).
-
-    Raises:
-        UserError: anything else (None, a number), naming the argument.
-    """
-    if isinstance(value, os.PathLike):
-        value = os.fspath(value)
-    if not isinstance(value, str) or not value.strip():
-        raise UserError(f"{name}: expected a path (str or pathlib.Path), got {brief(value)}")
-    return Path(value)
-
-
-def _count(value: Any, name: str) -> int:
-    """Argument `name`, a whole number (a NumPy integer too; not a bool, text or float).
-
-    Raises:
-        UserError: naming the argument.
-    """
-    if isinstance(value, numbers.Integral) and not isinstance(value, bool | np_bool()):
-        return int(value)
-    raise UserError(f"{name}: expected an integer, got {brief(value)}")
-
-
-def np_bool() -> type:
-    """NumPy's bool scalar type when NumPy is loaded (it is no `bool`), else `bool`."""
-    np = sys.modules.get("numpy")
-    return np.bool_ if np is not None else bool
-
-
-def _check_max_cells(max_cells: int | None) -> None:
-    if max_cells is not None:
-        max_cells = _count(max_cells, "max_cells")
-    if max_cells is not None and max_cells < 1:
-        raise UserError(f"--max-cells: must be >= 1, got {max_cells}")
