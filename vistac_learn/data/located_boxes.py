@@ -23,6 +23,7 @@ within 2.3 px of the simulator's on every side, 0.23 px on average (24 images, 4
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -32,6 +33,7 @@ from vistac.dataset.files import remove_stale_temporaries, write_table
 from vistac.errors import UserError
 from vistac.progress import bar as progress_bar
 from vistac_learn.data.finger_masks import explained_finger_masks
+from vistac_learn.data.fingertip_table import cache_path
 from vistac_learn.data.locator import flat_render, learned_fit, refine_regions
 from vistac_learn.data.locator_cfg import LocatorCfg
 from vistac_learn.data.variants import read_rgb
@@ -153,10 +155,6 @@ def box_table(tables: DatasetTables, cfg: LocatorCfg = LocatorCfg(), cache_dir=N
     Raises:
         UserError: An unreadable image or an unwritable cache folder.
     """
-    from pathlib import Path
-
-    from vistac_learn.data.fingertip_table import cache_path
-
     path = cache_path(tables, cfg, Path(cache_dir) if cache_dir is not None else None,
                       f"boxes-v{BOX_VERSION}")
     if path.is_file():
