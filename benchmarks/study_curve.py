@@ -1,5 +1,6 @@
 """The study's CNN given more data: SchoeConv100-V3(FC160)'s learning curve on the simulated
-twin (issue 35, part 2), beside the project's default recipe and the twin's noise floor.
+twin (issue 35, part 2), beside the project's default recipe, the twin's noise floor and a net
+that learnt nothing (the constant predictor: the mean training label).
 
 One dataset of the twin (``sim_assets/scenes/study.yaml``, ``--n`` configurations split by
 object) serves every size: each run trains on a nested seeded subset of its training split
@@ -42,6 +43,7 @@ import contextlib
 import dataclasses
 import json
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -54,7 +56,15 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from learnbench import cpu_s, reference_entries, run_entry  # noqa: E402
 from learning_curve import epochs_for  # noqa: E402
-from study_replay import STUDY_KEYS, STUDY_ROWS, dataset, summarise, table, train_fraction  # noqa: E402, E501
+from study_replay import (  # noqa: E402
+    STUDY_KEYS,
+    STUDY_ROWS,
+    constant_predictor,
+    dataset,
+    summarise,
+    table,
+    train_fraction,
+)
 from studybench import V3, record, twin_parser  # noqa: E402
 
 import vistac_learn.evaluate.run as evaluate_module  # noqa: E402
@@ -196,7 +206,7 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
     study = dict(zip(STUDY_KEYS, STUDY_ROWS[V3], strict=True))
     axes[0].plot(162, study["in_cone_pct"], "*", ms=14, color="tab:blue", mec="k",
                  label="the study (real, 34 test configurations)")
-    for ref, style in zip(refs, ("--", ":"), strict=False):
+    for ref, style in zip(refs, ("--", ":", "-."), strict=False):
         for ax, key in ((axes[0], "in_cone_pct"), (axes[1], ANGLE), (axes[2], ANGLE)):
             ax.axhline(ref["metrics"]["index"][key], ls=style, lw=1, color="grey",
                        label=ref["label"] if ax is axes[0] else None)
@@ -206,7 +216,7 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
     axes[0].set_ylabel("% in cone (index, test)")
     axes[1].set_ylabel("median angle to the cone mean (deg, index)")
     axes[2].set_xscale("log")
-    axes[2].set_xlabel("training CPU seconds (2 cores)")
+    axes[2].set_xlabel("training CPU seconds (user + system)")
     axes[2].set_ylabel("median angle to the cone mean (deg, index)")
     axes[0].legend(fontsize=7, loc="lower right")
     for ax in axes:
@@ -243,7 +253,9 @@ def curve(args: argparse.Namespace) -> dict:
     steps_note = (f"the replica's {REPLICA_STEPS}" if steps == REPLICA_STEPS else
                   f"cut from {args.min_steps} for the budget" if steps != args.min_steps else
                   f"--min-steps; the replica's is {REPLICA_STEPS}")
-    refs = reference_entries(data, ("index",))
+    refs = [*reference_entries(data, ("index",)),
+            {"label": "constant (mean training label)",
+             "metrics": {"index": constant_predictor(tables)}}]
     runs = plan(args, counts, steps)
     done: dict[tuple[str, int], list[dict]] = {}
     result: dict = {}
@@ -270,7 +282,8 @@ def curve(args: argparse.Namespace) -> dict:
                 "recipe is in the JSON. Every run's epoch chosen on the validation split, "
                 "scored once on the whole test split at 20 fixed rotations. Default recipe: its "
                 "own settings, `learning_curve.epochs_for` epochs. Mean ± std over seeds; "
-                "training CPU seconds: user + system, 2 cores.")
+                "training CPU seconds: user + system (OMP_NUM_THREADS="
+                f"{os.environ.get('OMP_NUM_THREADS', 'unset')} when written).")
         if lines:
             note += "\n\nPlan and cost:\n\n" + "\n".join(f"    {x}" for x in lines)
         result.update({"provenance": provenance([data]), "dataset": str(data),
