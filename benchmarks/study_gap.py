@@ -33,12 +33,16 @@ Resumable: a rerun reuses datasets and finished runs and rewrites ``<name>.json|
 Usage:
     .venv/bin/python benchmarks/study_gap.py
     .venv/bin/python benchmarks/study_gap.py --variants no_fts3 noise_0 --seeds 0 1
+    # two processes on one --work, then a gathering rerun of every variant:
+    .venv/bin/python benchmarks/study_gap.py --variants no_finger_pull noise_0 --name part_a &
+    .venv/bin/python benchmarks/study_gap.py --variants photo no_fts3 --skip-full --name part_b
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -160,7 +164,7 @@ def gap(args: argparse.Namespace) -> dict:
     work = Path(args.work)
     variants = list(dict.fromkeys(["full", *args.variants]))
     full_row = None if args.untrained else replay_row(args)
-    if full_row is not None:
+    if full_row is not None or args.skip_full:
         variants.remove("full")
     done: dict[str, list[dict]] = {}
     datasets: dict[str, Path] = {}
@@ -187,8 +191,8 @@ def gap(args: argparse.Namespace) -> dict:
                 f"changed, its own dataset of {args.n} configurations from seed "
                 f"{args.data_seed}. Cost: the variant's figure (without the effect) minus "
                 "the full twin's, for an added effect the reverse (positive: the effect "
-                "lowers it). Mean ± std over seeds; training CPU seconds: user + system, "
-                "2 cores.")
+                "lowers it). Mean ± std over seeds; training CPU seconds: user + system "
+                f"(OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')} when written).")
         result.update({"provenance": provenance(list(datasets.values())),
                        "datasets": {k: str(v) for k, v in datasets.items()},
                        "settings": {k: (str(v) if isinstance(v, Path) else v)
@@ -249,6 +253,9 @@ def main(argv: list[str] | None = None) -> int:
                    "5 minutes a run, scores as V3 does on the twin: docs/results.md)")
     p.add_argument("--untrained", action="store_true",
                    help="no training: the constant predictor per variant (minutes)")
+    p.add_argument("--skip-full", action="store_true",
+                   help="leave the full twin out (a second process sharing --work trains the "
+                   "other variants; a gathering rerun without it adds the full twin's row)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     args = p.parse_args(argv)
     if args.untrained and args.name == "study_gap":
