@@ -1,6 +1,7 @@
 """The study's CNN given more data: SchoeConv100-V3(FC160)'s learning curve on the simulated
-twin (issue 35, part 2), beside the project's default recipe, the twin's noise floor and a net
-that learnt nothing (the constant predictor: the mean training label).
+twin (issue 35, part 2), beside the project's default recipe, the twin's noise floor, a net
+that learnt nothing (the constant predictor: the mean training label) and the headroom (the
+noise-free force turned by the mean lean of the training labels: geometry known, no net).
 
 One dataset of the twin (``sim_assets/scenes/study.yaml``, ``--n`` configurations split by
 object) serves every size: each run trains on a nested seeded subset of its training split
@@ -61,6 +62,7 @@ from study_replay import (  # noqa: E402
     STUDY_ROWS,
     constant_predictor,
     dataset,
+    lean_oracle,
     summarise,
     table,
     train_fraction,
@@ -206,9 +208,10 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
     study = dict(zip(STUDY_KEYS, STUDY_ROWS[V3], strict=True))
     axes[0].plot(162, study["in_cone_pct"], "*", ms=14, color="tab:blue", mec="k",
                  label="the study (real, 34 test configurations)")
-    for ref, style in zip(refs, ("--", ":", "-."), strict=False):
+    styles = (("--", "grey"), (":", "grey"), ("-.", "grey"), ("--", "tab:red"))
+    for ref, (style, colour) in zip(refs, styles, strict=False):
         for ax, key in ((axes[0], "in_cone_pct"), (axes[1], ANGLE), (axes[2], ANGLE)):
-            ax.axhline(ref["metrics"]["index"][key], ls=style, lw=1, color="grey",
+            ax.axhline(ref["metrics"]["index"][key], ls=style, lw=1, color=colour,
                        label=ref["label"] if ax is axes[0] else None)
     for ax in axes[:2]:
         ax.set_xscale("log")
@@ -218,7 +221,7 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
     axes[2].set_xscale("log")
     axes[2].set_xlabel("training CPU seconds (user + system)")
     axes[2].set_ylabel("median angle to the cone mean (deg, index)")
-    axes[0].legend(fontsize=7, loc="lower right")
+    axes[0].legend(fontsize=7, loc="center right")
     for ax in axes:
         ax.grid(alpha=0.3)
     fig.tight_layout()
@@ -255,7 +258,9 @@ def curve(args: argparse.Namespace) -> dict:
                   f"--min-steps; the replica's is {REPLICA_STEPS}")
     refs = [*reference_entries(data, ("index",)),
             {"label": "constant (mean training label)",
-             "metrics": {"index": constant_predictor(tables)}}]
+             "metrics": {"index": constant_predictor(tables)}},
+            {"label": "geometry known: clean force + mean lean (no net)",
+             "metrics": {"index": lean_oracle(tables)}}]
     runs = plan(args, counts, steps)
     done: dict[tuple[str, int], list[dict]] = {}
     result: dict = {}

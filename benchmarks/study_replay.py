@@ -43,6 +43,7 @@ from learnbench import ensure_dataset, reference_entries, run_entry  # noqa: E40
 
 from vistac.dataset import SplitCfg, open_tables  # noqa: E402
 from vistac.provenance import provenance  # noqa: E402
+from vistac_learn.evaluate.references import clean_yz_columns  # noqa: E402
 from vistac_learn.metrics.scoring import STUDY_COLUMNS, score  # noqa: E402
 from vistac_learn.models import model_info  # noqa: E402
 from vistac_sim.generate.config import GenerateCfg  # noqa: E402
@@ -102,6 +103,22 @@ def constant_predictor(tables) -> dict:
     train, test = tables.rows("train"), tables.rows("test")
     mean = tables.mean_label("index")
     pred = np.tile(mean[train].mean(0), (len(test), 1))
+    return score(pred, tables, test, test, ("index",))["index"]
+
+
+def lean_oracle(tables) -> dict:
+    """Index-finger metrics on the test split of a predictor that knows each configuration's
+    geometry and has learnt the set-up's lean: the noise-free force's direction turned by the
+    mean angle (circular) from it to the training labels. Not a net: the headroom a net that
+    reads the geometry from the images could reach on the twin."""
+    train, test = tables.rows("train"), tables.rows("test")
+    yz = tables.configs[clean_yz_columns("index")].to_numpy(float)
+    clean = np.arctan2(yz[:, 0], yz[:, 1])
+    mean = tables.mean_label("index")
+    lean = np.angle(np.mean(np.exp(1j * (np.arctan2(mean[train, 0], mean[train, 1])
+                                         - clean[train]))))
+    turned = clean[test] + lean
+    pred = np.stack([np.sin(turned), np.cos(turned)], axis=1)
     return score(pred, tables, test, test, ("index",))["index"]
 
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from vistac.dataset import DatasetTables
 from vistac.dataset.files import atomic_write_json
+from vistac.dataset.schema import clean_force_columns
 from vistac_learn.data.fingertip_table import locator_fingerprint
 from vistac_learn.data.samples import RotationCfg
 from vistac_learn.evaluate.pinch import PinchCfg, dataset_friction, pinch_predictions
@@ -36,14 +37,15 @@ CACHE_VERSION = 2  # bump when the pinch baseline's output changes; invalidates 
 LABELS = {"noise_floor": "noise floor (clean force)", "pinch": "pinch baseline"}
 
 
-def clean_force_columns(finger: str) -> list[str]:
-    """The (y, z) noise-free force columns of a finger in ``configs.parquet``."""
-    return [f"force_clean_{finger}_y", f"force_clean_{finger}_z"]
+def clean_yz_columns(finger: str) -> list[str]:
+    """The (y, z) noise-free force columns of a finger in ``configs.parquet`` (the label's
+    plane; `vistac.dataset.schema.clean_force_columns` owns the names)."""
+    return clean_force_columns(finger)[1:]  # (x, y, z) -> (y, z)
 
 
 def has_clean_forces(tables: DatasetTables, fingers: tuple[str, ...]) -> bool:
     """Whether the dataset holds finite noise-free forces of every finger (simulated data)."""
-    cols = [c for f in fingers for c in clean_force_columns(f)]
+    cols = [c for f in fingers for c in clean_yz_columns(f)]
     if not all(c in tables.configs for c in cols):
         return False
     return bool(np.isfinite(tables.configs[cols].to_numpy(float)).all())
@@ -67,7 +69,7 @@ def noise_floor(tables: DatasetTables, rows: np.ndarray, fingers: tuple[str, ...
     rows = np.asarray(rows, dtype=np.int64)
     pred = []
     for f in fingers:
-        yz = tables.configs[clean_force_columns(f)].to_numpy(float)[rows]
+        yz = tables.configs[clean_yz_columns(f)].to_numpy(float)[rows]
         norm = np.hypot(yz[:, 0], yz[:, 1])[:, None]
         pred.append(np.where(norm > 0, yz / np.where(norm > 0, norm, 1.0), (0.0, -1.0)))
     return score(np.concatenate(pred, axis=1), tables, rows, rows, fingers)
