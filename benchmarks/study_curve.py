@@ -20,7 +20,11 @@ Recipe per size (`--protocol study`: edge-index images, Adam, MSE, lr 1e-4, batc
 Every run is scored on the test split at the study's 20 fixed rotations, whatever it trained
 with, so that the sizes stay comparable. The default recipe (its own settings, both fingers,
 the index shown) trains on the same subsets with the learning curve's epochs
-(`learning_curve.epochs_for`: >= 31 000 samples, 3 to 30 epochs).
+(`learning_curve.epochs_for`: >= 31 000 samples, 3 to 30 epochs), as it is and (``default-lean``)
+without what hides the twin's lean: mirrored training samples and test views (a mirror flips
+r_y, so the finger pull's sideways lean averages out) and the auxiliary contact targets (they
+pull the composed geometry toward the unleaned truth): ``--no-mirror --no-tta --aux-weight 0``.
+``--arms`` picks what is trained (e.g. one arm per process, sharing ``--work``).
 
 Cost: ``--estimate`` trains one epoch at the largest size (random rotations; its own run folder)
 and prints the CPU hours of the whole curve; over ``--budget-hours`` the plan says what it
@@ -79,6 +83,14 @@ REPLICA_STEPS = 162 * 20 * 20 // STUDY_BATCH  # 12 960
 VAL_COST = 0.35  # CPU of one validation sample against one training sample (no backward pass)
 DEFAULT_RUN_CPU_S = 600.0  # the default recipe per run (learning_curve.json: 200-570 CPU s)
 ANGLE = "angle_to_mean_median_deg"
+# the project's default recipe as it is, and with what keeps the twin's lean: no mirrored
+# training samples or test views (mirroring flips r_y, so a sideways pull's lean averages out)
+# and no auxiliary contact targets (they pull the geometry toward the unleaned truth)
+LEAN = "default-lean"
+ARMS = {V3: ("SchoeConv100-V3(FC160), study protocol", "tab:blue", {}),
+        "default": ("default recipe", "tab:green", {}),
+        LEAN: ("default recipe, no mirror, no contact targets", "tab:purple",
+               {"mirror": False, "tta": False, "aux_weight": 0.0})}
 NOMINAL_CPU_PER_SAMPLE = 2 / 40  # V3 at ~40 samples/s on 2 idle cores
 
 
@@ -118,13 +130,14 @@ def plan(args: argparse.Namespace, counts: dict, min_steps: int) -> list[dict]:
                   "samples": samples,
                   "val_samples": counts["val"] * r["n_rotations"] * r["epochs"]}
                  for s in args.seeds]
-        if args.default_recipe:
-            e = epochs_for(size, 31000, 3, 30)
-            runs += [{"arm": "default", "size": size, "seed": s, "changes": {"epochs": e},
-                      "steps": math.ceil(size / 32) * e, "samples": size * e, "val_samples": 0}
-                     for s in args.seeds]
+        e = epochs_for(size, 31000, 3, 30)
+        runs += [{"arm": arm, "size": size, "seed": s, "changes": {"epochs": e, **ARMS[arm][2]},
+                  "steps": math.ceil(size / 32) * e, "samples": size * e, "val_samples": 0}
+                 for arm in ("default", LEAN) if arm in args.arms for s in args.seeds]
+    runs = [r for r in runs if r["arm"] in args.arms]
     # the first seed of every size first: a curve early, the other seeds after it
-    return sorted(runs, key=lambda r: (args.seeds.index(r["seed"]), r["size"], r["arm"] != V3))
+    return sorted(runs, key=lambda r: (args.seeds.index(r["seed"]), r["size"],
+                                       list(ARMS).index(r["arm"])))
 
 
 def estimate_h(runs: list[dict], cpu_per_sample: float) -> float:
@@ -187,11 +200,10 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
     """% in cone and median angle to the cone mean against training configurations (log),
     and the angle against training CPU seconds; noise floor and the study's V3 as marks."""
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
-    for arm, colour in ((V3, "tab:blue"), ("default", "tab:green")):
+    for arm, (label, colour, _) in ARMS.items():
         mine = sorted((r for r in rows if r["arm"] == arm), key=lambda r: r["size"])
         if not mine:
             continue
-        label = "SchoeConv100-V3(FC160), study protocol" if arm == V3 else "default recipe"
         x = [r["size"] for r in mine]
         for ax, key in zip(axes[:2], ("in_cone_pct", ANGLE), strict=True):
             ax.errorbar(x, [r["summary"][key]["mean"] for r in mine],
@@ -268,7 +280,7 @@ def curve(args: argparse.Namespace) -> dict:
     def write() -> None:
         rows = []
         for (arm, size), entries in sorted(done.items(), key=lambda kv: (kv[0][0], kv[0][1])):
-            name = "SchoeConv100-V3(FC160)" if arm == V3 else "default recipe"
+            name = ARMS[arm][0]
             rows.append({"label": f"{name}, {size} configurations", "kind": "model",
                          "arm": arm, "size": size, "summary": summarise(entries),
                          "recipe": entries[0]["recipe"], "runs": entries})
@@ -286,7 +298,9 @@ def curve(args: argparse.Namespace) -> dict:
                 f"that the optimiser steps >= {steps} ({steps_note}); each row's "
                 "recipe is in the JSON. Every run's epoch chosen on the validation split, "
                 "scored once on the whole test split at 20 fixed rotations. Default recipe: its "
-                "own settings, `learning_curve.epochs_for` epochs. Mean ± std over seeds; "
+                "own settings, `learning_curve.epochs_for` epochs; 'no mirror, no contact "
+                "targets': the same with `--no-mirror --no-tta --aux-weight 0`. Mean ± std "
+                "over seeds; "
                 "training CPU seconds: user + system (OMP_NUM_THREADS="
                 f"{os.environ.get('OMP_NUM_THREADS', 'unset')} when written).")
         if lines:
@@ -336,8 +350,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--study-epochs", type=int, default=20, help="epochs up to --study-size")
     p.add_argument("--min-steps", type=int, default=REPLICA_STEPS,
                    help="optimiser steps (batches of 5) of each size above --study-size")
-    p.add_argument("--no-default-recipe", dest="default_recipe", action="store_false",
-                   help="leave the project's default recipe out")
+    p.add_argument("--arms", nargs="+", choices=list(ARMS), default=list(ARMS),
+                   help=f"what is trained: the study's V3, the default recipe, and ({LEAN}) the "
+                   "default recipe without mirroring or contact targets")
     p.add_argument("--estimate", action="store_true",
                    help="train one V3 epoch at the largest size, print the plan and its CPU hours")
     p.add_argument("--plan", action="store_true", help="print the plan (and a measured "
