@@ -77,6 +77,7 @@ from vistac_learn.train.checkpoints import (
     trainable_parameters,
 )
 from vistac_learn.train.config import TrainCfg
+from vistac_learn.train.label_lean import label_lean, lean_note
 from vistac_learn.train.losses import batch_loss, masked_mse  # noqa: F401  (masked_mse: API)
 from vistac_learn.train.memory import check_fits
 from vistac_learn.train.run_files import append_metrics, mark_diverged, restore_metrics
@@ -273,11 +274,16 @@ def _train(cfg: TrainCfg, resume: bool, progress: bool,
         restore_metrics(folder.metrics, state.history)  # a kill before an append, a damaged table
     else:  # a new run, or one killed before its first checkpoint: start (again) from scratch
         state = LoopState()
+        lean = label_lean({f: tables.mean_label(f)[train_ds.rows] for f in fingers})
         folder.start(run_meta(cfg, model, tables, fingerprint, train_ds, val_ds, device,
                               init_note)
-                     | {"fingertips": {c.split: c.as_dict() for c in coverage}})
+                     | {"fingertips": {c.split: c.as_dict() for c in coverage},
+                        "label_lean": lean})
         if init_note and progress:
             note(f"init: {init_note['summary']}")
+        lean_line = lean_note(lean, cfg.mirror, cfg.tta)
+        if lean_line and progress:
+            note(f"note: {lean_line}")
 
     def save() -> None:
         save_last(folder.last, model, opt, sched, state, cfg, device)
