@@ -64,6 +64,11 @@ def _epoch_rows(run: Path) -> list[dict]:
         return list(csv.DictReader(fh))
 
 
+def finished_run(out: Path, label: str, epochs: int) -> bool:
+    """Whether `run_entry(data, out, label, ...)` has trained its `epochs` (it would only score)."""
+    return len(_epoch_rows(out / "runs" / slug(label))) >= epochs
+
+
 def cpu_s() -> float:
     """CPU seconds (user + system) of this process and its finished children."""
     own, kids = (resource.getrusage(w) for w in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))

@@ -59,7 +59,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from learnbench import cpu_s, reference_entries, run_entry  # noqa: E402
+from learnbench import cpu_s, finished_run, reference_entries, run_entry  # noqa: E402
 from learning_curve import epochs_for  # noqa: E402
 from study_replay import (  # noqa: E402
     STUDY_KEYS,
@@ -322,6 +322,9 @@ def curve(args: argparse.Namespace) -> dict:
         frac = train_fraction(tables, r["size"])
         t0 = time.perf_counter()
         label = f"{r['arm']} n{r['size']} seed {r['seed']}"
+        if args.gather and not finished_run(work, label, r["changes"]["epochs"]):
+            print(f"== {label}: not finished, left out (--gather)", flush=True)
+            continue
         common = {"train_fraction": frac, "cache_dir": str(work / "cache")}
         with scored_at(20):
             if r["arm"] == V3:
@@ -360,6 +363,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--budget-hours", type=float, default=6.0, help="CPU hours the curve may take")
     p.add_argument("--cut", action="store_true",
                    help="apply the budget's cut of optimiser steps (needs a measured epoch)")
+    p.add_argument("--gather", action="store_true",
+                   help="train nothing: the results of the runs finished in --work (others "
+                   "left out and named)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     args = p.parse_args(argv)
     if args.big:
