@@ -35,12 +35,15 @@ SOURCES = ("study_replay", "study_curve", "study_label_noise", "study_sim2real")
 
 
 def family(label: str) -> str:
-    """The net a row trained: the study's V3, SmallConv or the project's default recipe."""
+    """The net a row trained: the study's V3, SmallConv, the project's default recipe or that
+    recipe without mirroring and contact targets."""
     low = label.lower()
     if "v3" in low:
         return "SchoeConv100-V3(FC160), study protocol"
     if "smallconv" in low:
         return "SmallConv, study protocol"
+    if "no mirror" in low:
+        return "default recipe, no mirror, no contact targets"
     return "default recipe"
 
 
@@ -87,9 +90,10 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
     """% in cone and the median angle against training CPU seconds (log), a marker per source,
     a colour per net; the references as horizontal lines."""
     colours = {"SchoeConv100-V3(FC160), study protocol": "tab:blue",
-               "SmallConv, study protocol": "tab:orange", "default recipe": "tab:green"}
+               "SmallConv, study protocol": "tab:orange", "default recipe": "tab:green",
+               "default recipe, no mirror, no contact targets": "tab:purple"}
     markers = dict(zip(SOURCES, ("*", "o", "s", "^"), strict=True))
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
+    fig, axes = plt.subplots(1, 2, figsize=(12, 5.4))
     for ax, key in zip(axes, ("in_cone_pct", ANGLE), strict=True):
         for fam, colour in colours.items():
             for source, marker in markers.items():
@@ -112,10 +116,10 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("% in cone (index, test)")
     axes[1].set_ylabel("median angle to the cone mean (deg, index)")
-    axes[0].legend(fontsize=7, loc="best")
+    fig.legend(*axes[0].get_legend_handles_labels(), fontsize=7, loc="lower center", ncol=3)
     fig.suptitle("The study's nets and the project's recipe on the twin: accuracy against "
                  "training CPU time", fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.16, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

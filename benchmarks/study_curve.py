@@ -199,7 +199,7 @@ def measure_epoch(data: Path, work: Path, args, tables) -> float:
 def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
     """% in cone and median angle to the cone mean against training configurations (log),
     and the angle against training CPU seconds; noise floor and the study's V3 as marks."""
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
+    fig, axes = plt.subplots(1, 3, figsize=(15, 5.2))
     for arm, (label, colour, _) in ARMS.items():
         mine = sorted((r for r in rows if r["arm"] == arm), key=lambda r: r["size"])
         if not mine:
@@ -225,18 +225,21 @@ def plot(rows: list[dict], refs: list[dict], path: Path) -> None:
         for ax, key in ((axes[0], "in_cone_pct"), (axes[1], ANGLE), (axes[2], ANGLE)):
             ax.axhline(ref["metrics"]["index"][key], ls=style, lw=1, color=colour,
                        label=ref["label"] if ax is axes[0] else None)
+    sizes = sorted({r["size"] for r in rows if r.get("size")})
     for ax in axes[:2]:
         ax.set_xscale("log")
+        ax.set_xticks(sizes, [str(n) for n in sizes])
+        ax.minorticks_off()
         ax.set_xlabel("training configurations")
     axes[0].set_ylabel("% in cone (index, test)")
     axes[1].set_ylabel("median angle to the cone mean (deg, index)")
     axes[2].set_xscale("log")
     axes[2].set_xlabel("training CPU seconds (user + system)")
     axes[2].set_ylabel("median angle to the cone mean (deg, index)")
-    axes[0].legend(fontsize=7, loc="center right")
+    fig.legend(*axes[0].get_legend_handles_labels(), fontsize=7, loc="lower center", ncol=4)
     for ax in axes:
         ax.grid(alpha=0.3)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.14, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
