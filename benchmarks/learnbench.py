@@ -28,6 +28,12 @@ from vistac_learn.train.config import protocol_cfg
 from vistac_learn.train.loop import train_run_folder
 from vistac_sim.generate.config import GenerateCfg
 
+# The default recipe without what averages a one-sided lean of the labels away: mirroring (in
+# training and at test time) and the simulator's contact targets (docs/learner.md, "When the
+# labels lean to one side"). The study twin's finger pull leans every index label ~8 degrees.
+LEAN_RECIPE = {"mirror": False, "tta": False, "aux_weight": 0.0}
+LEAN_LABEL = "default recipe, no mirror, no contact targets"
+
 COLUMNS = (("° to mean", "angle_to_mean_median_deg"), ("% in cone", "in_cone_pct"),
            ("% correct y", "correct_y_pct"), ("median err %", "error_median_pct"),
            ("median inacc. mean %", "inacc_mean_median_pct"))

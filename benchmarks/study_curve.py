@@ -59,7 +59,14 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from learnbench import cpu_s, finished_run, reference_entries, run_entry  # noqa: E402
+from learnbench import (  # noqa: E402
+    LEAN_LABEL,
+    LEAN_RECIPE,
+    cpu_s,
+    finished_run,
+    reference_entries,
+    run_entry,
+)
 from learning_curve import epochs_for  # noqa: E402
 from study_replay import (  # noqa: E402
     STUDY_KEYS,
@@ -89,8 +96,7 @@ ANGLE = "angle_to_mean_median_deg"
 LEAN = "default-lean"
 ARMS = {V3: ("SchoeConv100-V3(FC160), study protocol", "tab:blue", {}),
         "default": ("default recipe", "tab:green", {}),
-        LEAN: ("default recipe, no mirror, no contact targets", "tab:purple",
-               {"mirror": False, "tta": False, "aux_weight": 0.0})}
+        LEAN: (LEAN_LABEL, "tab:purple", LEAN_RECIPE)}
 NOMINAL_CPU_PER_SAMPLE = 2 / 40  # V3 at ~40 samples/s on 2 idle cores
 
 

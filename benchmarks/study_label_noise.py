@@ -9,14 +9,18 @@ into ``<work>/data``. Its clean forces are redrawn at each level of ``--levels``
 one model is trained on the noisy labels, selected on the validation split and scored once on
 the test split against the clean labels and against the noisy cones.
 
-The two models:
+The models (``--models``):
 
-- ``default``: `vistac train`'s default recipe (pinch view, pinchnet, both fingers), its 25
-  epochs (``--default-epochs``);
+- ``default``: `vistac train`'s default recipe (pinch view, pinchnet, both fingers),
+  ``--default-epochs`` epochs;
+- ``default-lean``: the same without mirroring and contact targets (``--no-mirror --no-tta
+  --aux-weight 0``), which keeps the twin's one-sided finger pull that mirroring averages away
+  (docs/learner.md, "When the labels lean to one side"; on the twin it is the project's best);
 - ``v3``: ``--protocol study`` with the rotations reduced as in issue 35's learning curve: one
   random rotation per sample and epoch (``--rotations random --n-rotations 1``) for as many
-  epochs as give at least the replica's optimiser steps (162 configurations x 20 rotations x
-  20 epochs / batch 5 = 12 960; ``--v3-steps``), or ``--v3-epochs`` when given (a cut: say so).
+  epochs as give at least ``--v3-steps`` optimiser steps (default: the replica's, 162
+  configurations x 20 rotations x 20 epochs / batch 5 = 12 960), or ``--v3-epochs`` when given
+  (a cut: say so).
 
 Beside each level: the noise in the labels themselves (median angle of a noisy test press label
 to its clean label) and the noise floor (the clean forces scored against the noisy cones: the
@@ -31,20 +35,19 @@ interrupted run from its last epoch) and rewrites the results, so an interrupted
 most one epoch. CPU seconds are measured per cell (training and its two test scorings,
 `learnbench.timed_runner`) and kept in ``<work>/<model>_cpu_s.json``.
 
-Cost (measured on the shared 2-core machine, 2026-11-28, load ~20: CPU seconds, user + system).
-V3 with one random rotation costs about 0.17 CPU s per training sample (a 151-sample epoch plus
-its scorings: 31-35 CPU s per cell; at the real size, `vistac train --protocol study --rotations
-random --n-rotations 1 --epochs 1` on a 3000-configuration dataset, 2059 training samples,
-fingertips located and the validation split scored included: 377 CPU s, 64 min wall). As
-specified (31 epochs = 12 960 steps, 6 levels x 3 seeds) one V3 cell is ~3 CPU h, the 18 cells
-~54 CPU h: far over the 6-hour budget. The default recipe (25 epochs over 2059
-configurations) is ~7 CPU min a cell, ~2 CPU h for 18. Cut, rotations being one already:
-epochs first, then seeds to 2, never fewer. The command that fits ~6 CPU h:
+Cost (measured in `study_curve.py`'s runs on this machine, 2026-11-28, one thread per process;
+CPU seconds, user + system): V3 with one random rotation ~0.043 CPU s per training sample
+(866 CPU s for 4000 steps), the default recipe ~0.014 (442 CPU s for 21 epochs over 1500
+configurations). On the 3000-configuration dataset (2059 training configurations) a V3 cell at
+the replica's 12 960 steps is ~2800 CPU s, 18 cells ~14 CPU h: far over the 6-hour budget. At
+4000 steps (10 epochs; `study_curve.py` found V3 the same at 4000 and 12 960 steps on the
+twin) a cell is ~900 CPU s; a default-recipe cell of 15 epochs (the curve's ~31 000 samples)
+~450. The command that fits ~6 CPU h, seeds cut to 2 (never fewer):
 
-    .venv/bin/python benchmarks/study_label_noise.py --seeds 2 --v3-epochs 4
+    .venv/bin/python benchmarks/study_label_noise.py --seeds 2 --v3-steps 4000 \
+        --default-epochs 15 --models default-lean v3 default
 
-(V3: 4 epochs = 1 648 steps, 13 % of the replica's, 12 cells ~4.7 CPU h; default: 12 cells
-~1.3 CPU h). The results state the epochs and steps used.
+(12 cells each: V3 ~3 CPU h, each default arm ~1.5). The results state the epochs and steps.
 
 Usage:
     .venv/bin/python benchmarks/study_label_noise.py                      # the whole run
@@ -66,7 +69,14 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from learnbench import cell_cpu_s, ensure_dataset, save, timed_runner  # noqa: E402
+from learnbench import (  # noqa: E402
+    LEAN_LABEL,
+    LEAN_RECIPE,
+    cell_cpu_s,
+    ensure_dataset,
+    save,
+    timed_runner,
+)
 
 import vistac  # noqa: E402
 from vistac.dataset import SplitCfg, open_tables  # noqa: E402
@@ -82,7 +92,9 @@ SCENE = REPO / "sim_assets" / "scenes" / "study.yaml"
 RESULTS = REPO / "benchmarks" / "results"
 REPLICA_STEPS = 162 * 20 * 20 // 5  # the study's 162 configurations x 20 rotations x 20 epochs
 LABELS = {"default": "default recipe (pinchnet, pinch view)",
+          "default-lean": LEAN_LABEL,
           "v3": "SchoeConv100-V3(FC160), study protocol, 1 random rotation"}
+COLOURS = {"v3": "tab:blue", "default": "tab:green", "default-lean": "tab:purple"}
 TWIN_NOTE = ("The twin (`sim_assets/scenes/study.yaml`: the `lab` imperfections, 5 % force noise, "
              "grasps within 10 degrees of the normal) is the one calibrated against the study's "
              "table (`benchmarks/study_replay.py`: V3 at 162 configurations scores 92.1 % "
@@ -132,8 +144,10 @@ def v3_epochs(n_train: int, batch: int, steps: int) -> int:
 
 def base_cfg(model: str, args: argparse.Namespace, n_train: int) -> TrainCfg:
     """The runs' training settings of `model` (data, out and seed are set per cell)."""
-    if model == "default":
-        return TrainCfg.from_protocol("default", epochs=args.default_epochs, device="cpu")
+    if model.startswith("default"):
+        lean = LEAN_RECIPE if model == "default-lean" else {}
+        return TrainCfg.from_protocol("default", epochs=args.default_epochs, device="cpu",
+                                      **lean)
     study = TrainCfg.from_protocol("study")
     epochs = args.v3_epochs or v3_epochs(n_train, study.batch_size, args.v3_steps)
     return TrainCfg.from_protocol("study", rotations="random", n_rotations=1, epochs=epochs,
@@ -235,8 +249,8 @@ def plot(models: dict, path: Path) -> None:
             ("noisy_angle_deg", "angle to the noisy cone mean (deg)"),
             ("noisy_in_cone_pct", "% in the noisy cone"))
     floor_key = {"noisy_angle_deg": "angle", "noisy_in_cone_pct": "in_cone"}
-    for (m, entry), colour in zip(models.items(), ("tab:blue", "tab:orange"), strict=False):
-        rows = entry["summary"]
+    for i, (m, entry) in enumerate(models.items()):
+        colour, rows = COLOURS[m], entry["summary"]
         x = np.array([r["level"] for r in rows])
         for ax, (k, name) in zip(axes, keys, strict=True):
             ax.errorbar(x, [r[k]["mean"] for r in rows], yerr=[r[k]["std"] for r in rows],
@@ -245,7 +259,7 @@ def plot(models: dict, path: Path) -> None:
                 f = [entry["floor"][r["level"]][floor_key[k]]["mean"] for r in rows]
                 ax.plot(x, f, "--", color=colour, alpha=0.6,
                         label=f"noise floor ({', '.join(entry['fingers'])})")
-            elif colour == "tab:blue":  # the same labels for every model: drawn once
+            elif i == 0:  # the same labels for every model: drawn once
                 ax.plot(x, [r["label_angle_deg"]["mean"] for r in rows], ":", color="grey",
                         label="the labels' own noise (median angle to the clean label)")
             ax.set_xlabel("label noise (relative std of the force)")
@@ -265,7 +279,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--n", type=int, default=3000, help="configurations generated")
     p.add_argument("--data-seed", type=int, default=29, help="the dataset's seed")
     p.add_argument("--levels", type=float, nargs="+", default=[0, 0.02, 0.05, 0.1, 0.2, 0.4])
-    p.add_argument("--models", nargs="+", default=["v3", "default"], choices=tuple(LABELS))
+    p.add_argument("--models", nargs="+", default=["default-lean", "v3", "default"],
+                   choices=tuple(LABELS))
     p.add_argument("--v3-steps", type=int, default=REPLICA_STEPS,
                    help="V3: at least this many optimiser steps (sets the epochs)")
     p.add_argument("--v3-epochs", type=int, default=None,
@@ -296,10 +311,11 @@ def main(argv: list[str] | None = None) -> int:
                 f"{args.n_objects} --split-by object --seed {args.data_seed} --out D"
                 if not args.data else f"D = {data}"]
     for m, e in models.items():
-        extra = ("--protocol study --rotations random --n-rotations 1 " if m == "v3" else "")
+        extra = ("--protocol study --rotations random --n-rotations 1 " if m == "v3" else
+                 "--no-mirror --no-tta --aux-weight 0 " if m == "default-lean" else "")
         commands.append(f"vistac experiment label-noise --data D {flags} {extra}--epochs "
                         f"{e['epochs']} --out {m}")
-    md = [f"# Label noise at scale: the default recipe and the study's CNN\n\n{TWIN_NOTE}\n",
+    md = [f"# Label noise at scale: the project's recipe and the study's CNN\n\n{TWIN_NOTE}\n",
           "```bash\n" + "\n".join(commands) + "\n```\n",
           f"{args.n} configurations split by object ({counts['train']} / {counts['val']} / "
           f"{counts['test']}); angles: median angle to the cone mean, deg, mean of the model's "

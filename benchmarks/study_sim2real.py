@@ -22,7 +22,9 @@ simulated twin, fine-tuned on a study-sized, photo-like "real" side read back by
   steps (``--sim-epochs``); zero-shot, scratch and fine-tuned. ``v3-frozen``: the same with
   ``--freeze features`` (its sim-only and from-scratch runs are v3's, linked, not trained
   again).
-  ``default``: the project's default recipe on the same data.
+  ``default``: the project's default recipe on the same data; ``default-lean``: the same
+  without mirroring and contact targets (``--no-mirror --no-tta --aux-weight 0``), which keeps
+  the twin's one-sided finger pull (docs/learner.md, "When the labels lean to one side").
 
 Outputs: ``<results>/<name>.{json,md,png}``: per experiment the table (real test median angle
 to the cone mean, % in cone, train CPU s per cell, mean ± std over seeds), the zero-shot gap and
@@ -68,7 +70,14 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 import yaml  # noqa: E402
-from learnbench import cell_cpu_s, ensure_dataset, save, timed_runner  # noqa: E402
+from learnbench import (  # noqa: E402
+    LEAN_LABEL,
+    LEAN_RECIPE,
+    cell_cpu_s,
+    ensure_dataset,
+    save,
+    timed_runner,
+)
 from study_label_noise import (  # noqa: E402
     REPLICA_STEPS,
     SCENE,
@@ -95,7 +104,10 @@ REPO = Path(__file__).resolve().parent.parent
 RESULTS = REPO / "benchmarks" / "results"
 EXPERIMENTS = {"v3": "SchoeConv100-V3(FC160), study protocol",
                "v3-frozen": "SchoeConv100-V3(FC160), fine-tuned with --freeze features",
-               "default": "default recipe (pinchnet, pinch view)"}
+               "default": "default recipe (pinchnet, pinch view)",
+               "default-lean": LEAN_LABEL}
+COLOURS = {"v3": "tab:blue", "v3-frozen": "tab:orange", "default": "tab:green",
+           "default-lean": "tab:purple"}
 ARMS = {"sim-only": "sim only (zero-shot)", "scratch": "from scratch",
         "finetune": "sim-pretrained, fine-tuned"}
 
@@ -185,7 +197,8 @@ def base_cfgs(args: argparse.Namespace, n_sim_train: int) -> dict[str, tuple[Tra
                                      max_missing_pct=args.max_missing_pct)
     return {"v3": (study, {**pre, "freeze": "none"}),
             "v3-frozen": (study, {**pre, "freeze": "features"}),
-            "default": (default, {"freeze": "none"})}
+            "default": (default, {"freeze": "none"}),
+            "default-lean": (dataclasses.replace(default, **LEAN_RECIPE), {"freeze": "none"})}
 
 
 def link_shared_runs(work: Path, cfg: S.Sim2RealCfg, base: TrainCfg) -> None:
@@ -283,9 +296,8 @@ def plot(exps: dict, path: Path) -> None:
     """Real test angle against the fraction of real training data: scratch (dotted), fine-tuned
     (solid), zero-shot (a horizontal band), one colour per experiment."""
     fig, ax = plt.subplots(figsize=(7.5, 4.5))
-    for (name, e), colour in zip(exps.items(), ("tab:blue", "tab:green", "tab:orange"),
-                                 strict=False):
-        rows = e["summary"]
+    for name, e in exps.items():
+        colour, rows = COLOURS[name], e["summary"]
         for arm, style in (("scratch", "o:"), ("finetune", "s-")):
             mine = sorted((r for r in rows if r["arm"] == arm), key=lambda r: r["fraction"])
             if mine and not (name == "v3-frozen" and arm == "scratch"):
@@ -368,7 +380,7 @@ def main(argv: list[str] | None = None) -> int:
         f"--max-missing-pct {args.max_missing_pct:g} [--freeze features] --out v3",
         f"vistac experiment sim2real --sim SIM --real REAL --fractions {fr} --seeds "
         f"{args.seeds} --epochs {args.default_epochs} --max-missing-pct "
-        f"{args.max_missing_pct:g} --out default"]
+        f"{args.max_missing_pct:g} [--no-mirror --no-tta --aux-weight 0] --out default"]
     md = [f"# sim-to-real for the study's CNN, through `vistac ingest`\n\n{TWIN_NOTE}\n",
           "```bash\n" + "\n".join(commands) + "\n```\n",
           f"Sim: {sim_train} training configurations of procedural objects. Real: "
