@@ -32,19 +32,22 @@ the gain of pretraining per fraction; the figure: real test angle against the fr
 data, per arm and experiment. Resumable: the datasets and finished cells are kept; a rerun
 continues, and ``--no-train`` only rewrites the results.
 
-Cost (measured on the shared 2-core machine, 2026-11-28; CPU seconds): V3 trains at about
-0.17 CPU s per sample (one random rotation, rendered each epoch; fixed rotations are rendered
-once and cost less). As specified (3 seeds; pretraining 31 epochs x ~2059 configurations =
-12 960 steps, ~3 CPU h a seed; real runs 20 rotations x 20 epochs over ~120 configurations, up
-to 48 000 samples, ~2 CPU h at fraction 1) the whole run is ~30-35 CPU h. Cut, rotations and
-epochs first, seeds to 2 (never fewer). The command that fits ~6 CPU h:
+Cost (measured in `study_curve.py`'s runs on this machine, 2026-11-28, one thread per process;
+CPU seconds, user + system): V3 trains at about 0.043 CPU s per sample with one random
+rotation (fixed rotations are rendered once and cost a little less), the default recipe at
+about 0.014. Per seed: pretraining at 4000 steps ~900 CPU s (at the replica's 12 960, ~2800);
+the real runs as the study trained them (20 fixed rotations x 20 epochs over ~120
+configurations at fraction 1: 48 000 samples) ~2000 CPU s at fraction 1, ~2900 over the three
+fractions, twice (scratch and fine-tuned), the frozen fine-tuning ~1000 more: ~7800 CPU s a
+seed, ~6.5 CPU h for 3 seeds at 4000 pretraining steps. Cut, pretraining steps first (the
+curve found V3 the same at 4000 and 12 960 steps), seeds to 2 (never fewer); the real side
+keeps the study's protocol. The command that fits ~6 CPU h:
 
     .venv/bin/python benchmarks/study_sim2real.py --sim runs/study_label_noise/data \
-        --seeds 2 --sim-epochs 4 --n-rotations 4
+        --seeds 2 --sim-steps 4000
 
-(pretraining 4 epochs = 1 648 steps, 13 % of the replica's, ~0.8 CPU h; real runs 4 fixed
-rotations x 20 epochs, v3 ~2.3 CPU h, the frozen fine-tuning ~0.8, the default recipe ~0.5).
-Generating the datasets costs minutes (the 200-configuration twin took 50 s wall here).
+(V3 and its frozen fine-tuning ~4.4 CPU h, the default arms minutes each). Generating the
+datasets costs minutes (the 200-configuration twin took 50 s wall here).
 
 Usage:
     .venv/bin/python benchmarks/study_sim2real.py --sim runs/study_label_noise/data
